@@ -1,0 +1,27 @@
+//! The Vulkan backend. It knows nothing of relighting: devices, memory, pipelines from
+//! reflected SPIR-V, acceleration structures and timestamps.
+
+mod accel;
+mod device;
+mod memory;
+mod pipeline;
+mod timer;
+
+pub use accel::{AccelStruct, RayScene};
+pub use device::{
+    list_devices, load_entry, validation_layer_available, Caps, CoopMatrixShape, DeviceChoice, Gpu,
+    GpuOptions,
+};
+pub use memory::{full_barrier, image_barrier, texel_size, Buffer, Image};
+pub use pipeline::{
+    layout_source, reflect, shader_names, spirv, Bind, GraphicsDesc, Pipeline, Reflected, Sampler,
+};
+pub use timer::Timer;
+
+pub use ash::vk;
+pub use gpu_allocator::MemoryLocation;
+
+/// Views a plain-data value as bytes (push constants).
+pub fn bytes_of<T: bytemuck::Pod>(v: &T) -> &[u8] {
+    bytemuck::bytes_of(v)
+}

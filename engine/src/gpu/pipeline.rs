@@ -1,0 +1,513 @@
+//! Pipelines built from embedded SPIR-V. Descriptor-set layouts and push-constant ranges come
+//! from reflection (rspirv-reflect; spirv-reflect 0.2.3 aborts on SPIR-V >= 1.4 and on ray-query
+//! modules). Set 0 is a push-descriptor set, so a pass binds its resources with one call and no
+//! descriptor pools exist anywhere.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use ash::vk;
+
+use super::memory::Buffer;
+use super::Gpu;
+use crate::error::{Error, Result, VkContext};
+
+mod embedded {
+    include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
+}
+
+/// Names of all embedded shaders (their paths below `shaders_glsl/`).
+pub fn shader_names() -> impl Iterator<Item = &'static str> {
+    embedded::SHADERS.iter().map(|(n, _)| *n)
+}
+
+/// The SPIR-V of an embedded shader, as words.
+pub fn spirv(name: &str) -> Result<Vec<u32>> {
+    let bytes = embedded::SHADERS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, b)| *b)
+        .ok_or_else(|| Error::Other(format!("no embedded shader named {name}")))?;
+    ash::util::read_spv(&mut std::io::Cursor::new(bytes))
+        .map_err(|e| Error::Other(format!("shader {name}: bad SPIR-V: {e}")))
+}
+
+/// The shader whose reflection gives `name`'s layout. No reflection crate reads
+/// cooperative-matrix modules yet, so a `*_cm.comp` kernel takes the layout of its portable twin
+/// (`*.comp`), which by construction declares the same bindings.
+pub fn layout_source(name: &str) -> String {
+    match name.strip_suffix("_cm.comp") {
+        Some(stem) => format!("{stem}.comp"),
+        None => name.to_string(),
+    }
+}
+
+/// What reflection says a shader stage uses.
+#[derive(Clone, Debug, Default)]
+pub struct Reflected {
+    /// set → binding → (type, count)
+    pub sets: BTreeMap<u32, BTreeMap<u32, (vk::DescriptorType, u32)>>,
+    /// Push-constant block size in bytes (0 when none).
+    pub push_size: u32,
+    pub workgroup: Option<(u32, u32, u32)>,
+}
+
+pub fn reflect(name: &str) -> Result<Reflected> {
+    let src = layout_source(name);
+    let words = spirv(&src)?;
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    let err = |e: rspirv_reflect::ReflectError| Error::Other(format!("reflecting {src}: {e:?}"));
+    let r = rspirv_reflect::Reflection::new_from_spirv(&bytes).map_err(err)?;
+    let mut sets = BTreeMap::new();
+    for (set, bindings) in r.get_descriptor_sets().map_err(err)? {
+        let mut out = BTreeMap::new();
+        for (binding, info) in bindings {
+            let count = match info.binding_count {
+                rspirv_reflect::BindingCount::One => 1,
+                rspirv_reflect::BindingCount::StaticSized(n) => n as u32,
+                rspirv_reflect::BindingCount::Unbounded => {
+                    return Err(Error::Other(format!(
+                        "{src}: unbounded array at set {set} binding {binding} is not supported"
+                    )))
+                }
+            };
+            out.insert(binding, (vk::DescriptorType::from_raw(info.ty.0 as i32), count));
+        }
+        sets.insert(set, out);
+    }
+    let push_size = r
+        .get_push_constant_range()
+        .map_err(err)?
+        .map(|p| p.offset + p.size)
+        .unwrap_or(0);
+    Ok(Reflected { sets, push_size, workgroup: r.get_compute_group_size() })
+}
+
+/// A resource bound at one binding of set 0.
+#[derive(Clone, Copy)]
+pub enum Bind<'a> {
+    Buffer(&'a Buffer),
+    StorageImage(vk::ImageView),
+    /// A combined image sampler in SHADER_READ_ONLY_OPTIMAL layout.
+    Sampled(vk::ImageView, vk::Sampler),
+    Accel(vk::AccelerationStructureKHR),
+}
+
+pub struct Pipeline {
+    pub gpu: Arc<Gpu>,
+    pub raw: vk::Pipeline,
+    pub layout: vk::PipelineLayout,
+    pub set_layout: vk::DescriptorSetLayout,
+    pub bind_point: vk::PipelineBindPoint,
+    pub bindings: BTreeMap<u32, (vk::DescriptorType, u32)>,
+    pub push_size: u32,
+    pub stages: vk::ShaderStageFlags,
+    pub workgroup: (u32, u32, u32),
+    pub name: String,
+}
+
+fn make_module(gpu: &Gpu, name: &str) -> Result<vk::ShaderModule> {
+    let words = spirv(name)?;
+    unsafe {
+        gpu.device
+            .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
+    }
+    .vk("create shader module")
+}
+
+/// Merges per-stage reflections into one set-0 layout and push range.
+fn make_layout(
+    gpu: &Gpu,
+    name: &str,
+    parts: &[(Reflected, vk::ShaderStageFlags)],
+) -> Result<(
+    vk::DescriptorSetLayout,
+    vk::PipelineLayout,
+    BTreeMap<u32, (vk::DescriptorType, u32)>,
+    u32,
+)> {
+    let mut bindings: BTreeMap<u32, (vk::DescriptorType, u32, vk::ShaderStageFlags)> = BTreeMap::new();
+    let mut push_size = 0;
+    for (r, stage) in parts {
+        for (set, b) in &r.sets {
+            if *set != 0 {
+                return Err(Error::Other(format!(
+                    "{name}: uses descriptor set {set}; Relit's pipelines use set 0 only"
+                )));
+            }
+            for (binding, (ty, count)) in b {
+                let e = bindings.entry(*binding).or_insert((*ty, *count, vk::ShaderStageFlags::empty()));
+                if e.0 != *ty {
+                    return Err(Error::Other(format!(
+                        "{name}: binding {binding} has type {:?} in one stage and {ty:?} in another",
+                        e.0
+                    )));
+                }
+                e.2 |= *stage;
+            }
+        }
+        push_size = push_size.max(r.push_size);
+    }
+    let all_stages: vk::ShaderStageFlags =
+        parts.iter().fold(vk::ShaderStageFlags::empty(), |a, (_, s)| a | *s);
+    let vk_bindings: Vec<vk::DescriptorSetLayoutBinding> = bindings
+        .iter()
+        .map(|(b, (ty, count, stages))| {
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(*b)
+                .descriptor_type(*ty)
+                .descriptor_count(*count)
+                .stage_flags(*stages)
+        })
+        .collect();
+    let d = &gpu.device;
+    let set_layout = unsafe {
+        d.create_descriptor_set_layout(
+            &vk::DescriptorSetLayoutCreateInfo::default()
+                .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
+                .bindings(&vk_bindings),
+            None,
+        )
+    }
+    .vk("create descriptor set layout")?;
+    let ranges = [vk::PushConstantRange::default()
+        .stage_flags(all_stages)
+        .offset(0)
+        .size(push_size)];
+    let set_layouts = [set_layout];
+    let mut info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
+    if push_size > 0 {
+        info = info.push_constant_ranges(&ranges);
+    }
+    let layout = match unsafe { d.create_pipeline_layout(&info, None) } {
+        Ok(l) => l,
+        Err(e) => {
+            unsafe { d.destroy_descriptor_set_layout(set_layout, None) };
+            return Err(Error::Vk { what: "create pipeline layout", result: e });
+        }
+    };
+    let out = bindings.into_iter().map(|(b, (t, c, _))| (b, (t, c))).collect();
+    Ok((set_layout, layout, out, push_size))
+}
+
+/// Fixed-function state for a graphics pipeline (dynamic rendering, dynamic viewport).
+pub struct GraphicsDesc<'a> {
+    pub vert: &'a str,
+    pub frag: &'a str,
+    pub color_formats: &'a [vk::Format],
+    pub depth_format: Option<vk::Format>,
+    /// Vertex buffer stride and (location, format, offset) of each attribute (binding 0).
+    pub vertex_stride: u32,
+    pub attributes: &'a [(u32, vk::Format, u32)],
+    pub cull: vk::CullModeFlags,
+}
+
+impl Pipeline {
+    pub fn compute(gpu: &Arc<Gpu>, name: &str) -> Result<Pipeline> {
+        let r = reflect(name)?;
+        let workgroup = r.workgroup.unwrap_or((1, 1, 1));
+        let (set_layout, layout, bindings, push_size) =
+            make_layout(gpu, name, &[(r, vk::ShaderStageFlags::COMPUTE)])?;
+        let module = make_module(gpu, name)?;
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(module)
+            .name(c"main");
+        let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout)];
+        let res = unsafe {
+            gpu.device
+                .create_compute_pipelines(vk::PipelineCache::null(), &info, None)
+        };
+        unsafe { gpu.device.destroy_shader_module(module, None) };
+        let raw = match res {
+            Ok(p) => p[0],
+            Err((_, e)) => {
+                unsafe {
+                    gpu.device.destroy_pipeline_layout(layout, None);
+                    gpu.device.destroy_descriptor_set_layout(set_layout, None);
+                }
+                return Err(Error::Vk { what: "create compute pipeline", result: e });
+            }
+        };
+        Ok(Pipeline {
+            gpu: gpu.clone(),
+            raw,
+            layout,
+            set_layout,
+            bind_point: vk::PipelineBindPoint::COMPUTE,
+            bindings,
+            push_size,
+            stages: vk::ShaderStageFlags::COMPUTE,
+            workgroup,
+            name: name.to_string(),
+        })
+    }
+
+    pub fn graphics(gpu: &Arc<Gpu>, desc: &GraphicsDesc) -> Result<Pipeline> {
+        let name = format!("{}+{}", desc.vert, desc.frag);
+        let parts = [
+            (reflect(desc.vert)?, vk::ShaderStageFlags::VERTEX),
+            (reflect(desc.frag)?, vk::ShaderStageFlags::FRAGMENT),
+        ];
+        let (set_layout, layout, bindings, push_size) = make_layout(gpu, &name, &parts)?;
+        let vm = make_module(gpu, desc.vert)?;
+        let fm = make_module(gpu, desc.frag)?;
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::VERTEX)
+                .module(vm)
+                .name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::FRAGMENT)
+                .module(fm)
+                .name(c"main"),
+        ];
+        let vb = [vk::VertexInputBindingDescription::default()
+            .binding(0)
+            .stride(desc.vertex_stride)
+            .input_rate(vk::VertexInputRate::VERTEX)];
+        let attrs: Vec<_> = desc
+            .attributes
+            .iter()
+            .map(|(loc, fmt, off)| {
+                vk::VertexInputAttributeDescription::default()
+                    .location(*loc)
+                    .binding(0)
+                    .format(*fmt)
+                    .offset(*off)
+            })
+            .collect();
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
+            .vertex_binding_descriptions(&vb)
+            .vertex_attribute_descriptions(&attrs);
+        let ia = vk::PipelineInputAssemblyStateCreateInfo::default()
+            .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let vp = vk::PipelineViewportStateCreateInfo::default()
+            .viewport_count(1)
+            .scissor_count(1);
+        let rs = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(desc.cull)
+            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .line_width(1.0);
+        let ms = vk::PipelineMultisampleStateCreateInfo::default()
+            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let ds = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(desc.depth_format.is_some())
+            .depth_write_enable(desc.depth_format.is_some())
+            .depth_compare_op(vk::CompareOp::LESS);
+        let blend: Vec<_> = desc
+            .color_formats
+            .iter()
+            .map(|_| {
+                vk::PipelineColorBlendAttachmentState::default()
+                    .color_write_mask(vk::ColorComponentFlags::RGBA)
+            })
+            .collect();
+        let cb = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend);
+        let dyn_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dyn_states);
+        let mut rendering = vk::PipelineRenderingCreateInfo::default()
+            .color_attachment_formats(desc.color_formats)
+            .depth_attachment_format(desc.depth_format.unwrap_or(vk::Format::UNDEFINED));
+        let info = [vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&ia)
+            .viewport_state(&vp)
+            .rasterization_state(&rs)
+            .multisample_state(&ms)
+            .depth_stencil_state(&ds)
+            .color_blend_state(&cb)
+            .dynamic_state(&dynamic)
+            .layout(layout)
+            .push_next(&mut rendering)];
+        let res = unsafe {
+            gpu.device
+                .create_graphics_pipelines(vk::PipelineCache::null(), &info, None)
+        };
+        unsafe {
+            gpu.device.destroy_shader_module(vm, None);
+            gpu.device.destroy_shader_module(fm, None);
+        }
+        let raw = match res {
+            Ok(p) => p[0],
+            Err((_, e)) => {
+                unsafe {
+                    gpu.device.destroy_pipeline_layout(layout, None);
+                    gpu.device.destroy_descriptor_set_layout(set_layout, None);
+                }
+                return Err(Error::Vk { what: "create graphics pipeline", result: e });
+            }
+        };
+        Ok(Pipeline {
+            gpu: gpu.clone(),
+            raw,
+            layout,
+            set_layout,
+            bind_point: vk::PipelineBindPoint::GRAPHICS,
+            bindings,
+            push_size,
+            stages: vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
+            workgroup: (1, 1, 1),
+            name,
+        })
+    }
+
+    /// Binds the pipeline, pushes set 0 and the push constants. Each reflected binding must be
+    /// given exactly once, with a resource of the reflected type.
+    pub fn bind(&self, cmd: vk::CommandBuffer, binds: &[(u32, Bind)], push: &[u8]) -> Result<()> {
+        for b in self.bindings.keys() {
+            if !binds.iter().any(|(i, _)| i == b) {
+                return Err(Error::Other(format!("{}: binding {b} not given", self.name)));
+            }
+        }
+        if push.len() as u32 != self.push_size {
+            return Err(Error::Other(format!(
+                "{}: push constants are {} bytes, shader declares {}",
+                self.name,
+                push.len(),
+                self.push_size
+            )));
+        }
+        let mut buf_infos = Vec::with_capacity(binds.len());
+        let mut img_infos = Vec::with_capacity(binds.len());
+        let mut accels = Vec::with_capacity(binds.len());
+        for (binding, b) in binds {
+            let (ty, _) = self.bindings.get(binding).ok_or_else(|| {
+                Error::Other(format!("{}: shader has no binding {binding}", self.name))
+            })?;
+            let ok = matches!(
+                (b, *ty),
+                (Bind::Buffer(_), vk::DescriptorType::STORAGE_BUFFER)
+                    | (Bind::Buffer(_), vk::DescriptorType::UNIFORM_BUFFER)
+                    | (Bind::StorageImage(_), vk::DescriptorType::STORAGE_IMAGE)
+                    | (Bind::Sampled(..), vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                    | (Bind::Accel(_), vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
+            );
+            if !ok {
+                return Err(Error::Other(format!(
+                    "{}: binding {binding} is {ty:?} in the shader",
+                    self.name
+                )));
+            }
+            match b {
+                Bind::Buffer(buf) => buf_infos.push(
+                    vk::DescriptorBufferInfo::default()
+                        .buffer(buf.raw)
+                        .range(vk::WHOLE_SIZE),
+                ),
+                Bind::StorageImage(v) => img_infos.push(
+                    vk::DescriptorImageInfo::default()
+                        .image_view(*v)
+                        .image_layout(vk::ImageLayout::GENERAL),
+                ),
+                Bind::Sampled(v, s) => img_infos.push(
+                    vk::DescriptorImageInfo::default()
+                        .image_view(*v)
+                        .sampler(*s)
+                        .image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL),
+                ),
+                Bind::Accel(a) => accels.push([*a]),
+            }
+        }
+        let mut as_writes: Vec<vk::WriteDescriptorSetAccelerationStructureKHR> = accels
+            .iter()
+            .map(|a| vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(a))
+            .collect();
+        let (mut bi, mut ii) = (0, 0);
+        let mut as_iter = as_writes.iter_mut();
+        let mut writes = Vec::with_capacity(binds.len());
+        for (binding, b) in binds {
+            let ty = self.bindings[binding].0;
+            let w = vk::WriteDescriptorSet::default()
+                .dst_binding(*binding)
+                .descriptor_type(ty);
+            let w = match b {
+                Bind::Buffer(_) => {
+                    bi += 1;
+                    w.buffer_info(std::slice::from_ref(&buf_infos[bi - 1]))
+                }
+                Bind::StorageImage(_) | Bind::Sampled(..) => {
+                    ii += 1;
+                    w.image_info(std::slice::from_ref(&img_infos[ii - 1]))
+                }
+                // The count is not implied by a pNext struct: set it explicitly.
+                Bind::Accel(_) => w
+                    .descriptor_count(1)
+                    .push_next(as_iter.next().expect("one write per accel")),
+            };
+            writes.push(w);
+        }
+        unsafe {
+            let d = &self.gpu.device;
+            d.cmd_bind_pipeline(cmd, self.bind_point, self.raw);
+            if !writes.is_empty() {
+                self.gpu
+                    .push_desc
+                    .cmd_push_descriptor_set(cmd, self.bind_point, self.layout, 0, &writes);
+            }
+            if !push.is_empty() {
+                d.cmd_push_constants(cmd, self.layout, self.stages, 0, push);
+            }
+        }
+        Ok(())
+    }
+
+    /// Binds and dispatches enough workgroups to cover `threads` invocations.
+    pub fn dispatch(
+        &self,
+        cmd: vk::CommandBuffer,
+        binds: &[(u32, Bind)],
+        push: &[u8],
+        threads: (u32, u32, u32),
+    ) -> Result<()> {
+        self.bind(cmd, binds, push)?;
+        let (wx, wy, wz) = self.workgroup;
+        unsafe {
+            self.gpu.device.cmd_dispatch(
+                cmd,
+                threads.0.div_ceil(wx),
+                threads.1.div_ceil(wy),
+                threads.2.div_ceil(wz),
+            )
+        };
+        Ok(())
+    }
+}
+
+impl Drop for Pipeline {
+    fn drop(&mut self) {
+        unsafe {
+            let d = &self.gpu.device;
+            d.destroy_pipeline(self.raw, None);
+            d.destroy_pipeline_layout(self.layout, None);
+            d.destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
+}
+
+/// A linear, clamp-to-edge sampler.
+pub struct Sampler {
+    gpu: Arc<Gpu>,
+    pub raw: vk::Sampler,
+}
+
+impl Sampler {
+    pub fn linear(gpu: &Arc<Gpu>) -> Result<Sampler> {
+        let info = vk::SamplerCreateInfo::default()
+            .mag_filter(vk::Filter::LINEAR)
+            .min_filter(vk::Filter::LINEAR)
+            .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE);
+        let raw = unsafe { gpu.device.create_sampler(&info, None) }.vk("create sampler")?;
+        Ok(Sampler { gpu: gpu.clone(), raw })
+    }
+}
+
+impl Drop for Sampler {
+    fn drop(&mut self) {
+        unsafe { self.gpu.device.destroy_sampler(self.raw, None) };
+    }
+}

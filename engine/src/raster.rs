@@ -1,0 +1,181 @@
+//! G-buffer of a mesh from a camera (`shaders_glsl/raster/gbuffer.{vert,frag}`): world position
+//! with camera depth, geometric normal, triangle id. The per-view depth maps of the bake (§4.1)
+//! and the novel-view G-buffer of the frame (§4.3) are this pass. Its reference is
+//! [`crate::cpu::gbuffer`], a ray cast through the same pixel centres.
+
+use std::sync::Arc;
+
+use crate::error::Result;
+use crate::gpu::{bytes_of, image_barrier, vk, Bind, Gpu, GraphicsDesc, Image, Pipeline, RayScene};
+use crate::scene::Camera;
+
+pub const POS_DEPTH_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+pub const NORMAL_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+pub const TRI_FORMAT: vk::Format = vk::Format::R32_UINT;
+const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+
+/// The G-buffer images, left in GENERAL layout after [`GbufferPass::record`].
+pub struct Gbuffer {
+    /// xyz = world position, w = camera depth (0 where nothing was hit).
+    pub pos_depth: Image,
+    /// xyz = geometric normal (counter-clockwise winding is the front).
+    pub normal: Image,
+    /// Triangle id + 1; 0 = background.
+    pub tri: Image,
+    depth: Image,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Gbuffer {
+    pub fn new(gpu: &Arc<Gpu>, width: u32, height: u32) -> Result<Gbuffer> {
+        let color = vk::ImageUsageFlags::COLOR_ATTACHMENT
+            | vk::ImageUsageFlags::STORAGE
+            | vk::ImageUsageFlags::SAMPLED;
+        Ok(Gbuffer {
+            pos_depth: Image::new(gpu, "gbuffer pos", POS_DEPTH_FORMAT, width, height, 1, color)?,
+            normal: Image::new(gpu, "gbuffer normal", NORMAL_FORMAT, width, height, 1, color)?,
+            tri: Image::new(gpu, "gbuffer tri", TRI_FORMAT, width, height, 1, color)?,
+            depth: Image::new(
+                gpu,
+                "gbuffer depth",
+                DEPTH_FORMAT,
+                width,
+                height,
+                1,
+                vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+            )?,
+            width,
+            height,
+        })
+    }
+
+    /// Reads the three images back: (pos+depth, normal, triangle id + 1) per pixel.
+    pub fn download(&self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<u32>)> {
+        let l = vk::ImageLayout::GENERAL;
+        Ok((
+            bytemuck::pod_collect_to_vec(&self.pos_depth.download(l)?),
+            bytemuck::pod_collect_to_vec(&self.normal.download(l)?),
+            bytemuck::pod_collect_to_vec(&self.tri.download(l)?),
+        ))
+    }
+}
+
+pub struct GbufferPass {
+    pipeline: Pipeline,
+}
+
+impl GbufferPass {
+    pub fn new(gpu: &Arc<Gpu>) -> Result<GbufferPass> {
+        let pipeline = Pipeline::graphics(
+            gpu,
+            &GraphicsDesc {
+                vert: "raster/gbuffer.vert",
+                frag: "raster/gbuffer.frag",
+                color_formats: &[POS_DEPTH_FORMAT, NORMAL_FORMAT, TRI_FORMAT],
+                depth_format: Some(DEPTH_FORMAT),
+                vertex_stride: 12,
+                attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0)],
+                cull: vk::CullModeFlags::NONE,
+            },
+        )?;
+        Ok(GbufferPass { pipeline })
+    }
+
+    /// Records the rasterization of `mesh` seen by `cam` into `out` (same size as the camera).
+    pub fn record(
+        &self,
+        cmd: vk::CommandBuffer,
+        mesh: &RayScene,
+        cam: &Camera,
+        near: f32,
+        far: f32,
+        out: &Gbuffer,
+    ) -> Result<()> {
+        let gpu = &self.pipeline.gpu;
+        let d = &gpu.device;
+        let color = vk::ImageAspectFlags::COLOR;
+        for img in [&out.pos_depth, &out.normal, &out.tri] {
+            image_barrier(gpu, cmd, img.raw, color, vk::ImageLayout::UNDEFINED, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL);
+        }
+        image_barrier(
+            gpu,
+            cmd,
+            out.depth.raw,
+            vk::ImageAspectFlags::DEPTH,
+            vk::ImageLayout::UNDEFINED,
+            vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL,
+        );
+        let clear = |c: vk::ClearValue, img: &Image| {
+            vk::RenderingAttachmentInfo::default()
+                .image_view(img.view)
+                .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::STORE)
+                .clear_value(c)
+        };
+        let zero_f = vk::ClearValue { color: vk::ClearColorValue { float32: [0.0; 4] } };
+        let zero_u = vk::ClearValue { color: vk::ClearColorValue { uint32: [0; 4] } };
+        let colors = [clear(zero_f, &out.pos_depth), clear(zero_f, &out.normal), clear(zero_u, &out.tri)];
+        let depth = vk::RenderingAttachmentInfo::default()
+            .image_view(out.depth.view)
+            .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
+            .load_op(vk::AttachmentLoadOp::CLEAR)
+            .store_op(vk::AttachmentStoreOp::DONT_CARE)
+            .clear_value(vk::ClearValue {
+                depth_stencil: vk::ClearDepthStencilValue { depth: 1.0, stencil: 0 },
+            });
+        let area = vk::Rect2D {
+            offset: vk::Offset2D::default(),
+            extent: vk::Extent2D { width: out.width, height: out.height },
+        };
+        let push = cam.to_gpu(near, far);
+        unsafe {
+            d.cmd_begin_rendering(
+                cmd,
+                &vk::RenderingInfo::default()
+                    .render_area(area)
+                    .layer_count(1)
+                    .color_attachments(&colors)
+                    .depth_attachment(&depth),
+            );
+            self.pipeline.bind(
+                cmd,
+                &[(0, Bind::Buffer(&mesh.positions)), (1, Bind::Buffer(&mesh.indices))],
+                bytes_of(&push),
+            )?;
+            d.cmd_set_viewport(
+                cmd,
+                0,
+                &[vk::Viewport {
+                    x: 0.0,
+                    y: 0.0,
+                    width: out.width as f32,
+                    height: out.height as f32,
+                    min_depth: 0.0,
+                    max_depth: 1.0,
+                }],
+            );
+            d.cmd_set_scissor(cmd, 0, &[area]);
+            d.cmd_bind_vertex_buffers(cmd, 0, &[mesh.positions.raw], &[0]);
+            d.cmd_bind_index_buffer(cmd, mesh.indices.raw, 0, vk::IndexType::UINT32);
+            d.cmd_draw_indexed(cmd, mesh.triangle_count * 3, 1, 0, 0, 0);
+            d.cmd_end_rendering(cmd);
+        }
+        for img in [&out.pos_depth, &out.normal, &out.tri] {
+            image_barrier(gpu, cmd, img.raw, color, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::ImageLayout::GENERAL);
+        }
+        Ok(())
+    }
+
+    /// Renders one G-buffer and waits for it.
+    pub fn render(&self, mesh: &RayScene, cam: &Camera, near: f32, far: f32) -> Result<Gbuffer> {
+        let out = Gbuffer::new(&self.pipeline.gpu, cam.width, cam.height)?;
+        let mut res = Ok(());
+        self.pipeline
+            .gpu
+            .submit(|cmd| res = self.record(cmd, mesh, cam, near, far, &out))?;
+        res?;
+        Ok(out)
+    }
+}

@@ -1,0 +1,182 @@
+//! Images: EXR (half or float, RGB or RGBA) kept linear; PNG/JPEG decoded from sRGB to linear.
+//! Headers are checked before any pixel is decoded, so a file claiming 100000×100000 is refused
+//! without allocating for it.
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+use crate::scene::MAX_IMAGE_DIM;
+
+/// A linear RGB float image, rows top to bottom.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 3]>,
+}
+
+impl RgbImage {
+    pub fn new(width: u32, height: u32) -> RgbImage {
+        RgbImage { width, height, pixels: vec![[0.0; 3]; (width * height) as usize] }
+    }
+    pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
+        self.pixels[(y * self.width + x) as usize]
+    }
+    pub fn set(&mut self, x: u32, y: u32, v: [f32; 3]) {
+        self.pixels[(y * self.width + x) as usize] = v;
+    }
+}
+
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    if c <= 0.0031308 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+fn check_dims(path: &Path, w: u64, h: u64) -> Result<()> {
+    if w == 0 || h == 0 || w > MAX_IMAGE_DIM as u64 || h > MAX_IMAGE_DIM as u64 {
+        return Err(Error::input(
+            path,
+            format!("image header claims {w}x{h} pixels; expected 1..={MAX_IMAGE_DIM} per side"),
+        ));
+    }
+    Ok(())
+}
+
+/// Width and height from the header only.
+pub fn image_size(path: &Path) -> Result<(u32, u32)> {
+    if is_exr(path) {
+        let meta = exr::meta::MetaData::read_from_file(path, false)
+            .map_err(|e| Error::input(path, format!("unreadable EXR header: {e}")))?;
+        let h = meta
+            .headers
+            .first()
+            .ok_or_else(|| Error::input(path, "EXR file has no layer"))?;
+        let size = h.layer_size;
+        check_dims(path, size.0 as u64, size.1 as u64)?;
+        Ok((size.0 as u32, size.1 as u32))
+    } else {
+        let reader = image::ImageReader::open(path)
+            .map_err(|e| Error::io(path, e))?
+            .with_guessed_format()
+            .map_err(|e| Error::io(path, e))?;
+        let (w, h) = reader
+            .into_dimensions()
+            .map_err(|e| Error::input(path, format!("unreadable image header: {e}")))?;
+        check_dims(path, w as u64, h as u64)?;
+        Ok((w, h))
+    }
+}
+
+fn is_exr(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+}
+
+/// Loads an image as linear RGB. Refuses non-finite or negative-infinite pixels, naming the first.
+pub fn load_rgb(path: &Path) -> Result<RgbImage> {
+    if !path.exists() {
+        return Err(Error::input(path, "image file does not exist"));
+    }
+    let (w, h) = image_size(path)?;
+    let img = if is_exr(path) {
+        use exr::prelude::*;
+        let image = read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .rgba_channels(
+                |res, _| RgbImage::new(res.width() as u32, res.height() as u32),
+                |img: &mut RgbImage, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                    img.set(pos.x() as u32, pos.y() as u32, [r, g, b])
+                },
+            )
+            .first_valid_layer()
+            .all_attributes()
+            .from_file(path)
+            .map_err(|e| crate::Error::input(path, format!("cannot decode EXR: {e}")))?;
+        image.layer_data.channel_data.pixels
+    } else {
+        let mut reader = image::ImageReader::open(path)
+            .map_err(|e| Error::io(path, e))?
+            .with_guessed_format()
+            .map_err(|e| Error::io(path, e))?;
+        let mut limits = image::Limits::default();
+        limits.max_image_width = Some(MAX_IMAGE_DIM);
+        limits.max_image_height = Some(MAX_IMAGE_DIM);
+        reader.limits(limits);
+        let decoded = reader
+            .decode()
+            .map_err(|e| Error::input(path, format!("cannot decode image: {e}")))?
+            .into_rgb32f();
+        RgbImage {
+            width: decoded.width(),
+            height: decoded.height(),
+            pixels: decoded
+                .pixels()
+                .map(|p| [srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2])])
+                .collect(),
+        }
+    };
+    if (img.width, img.height) != (w, h) {
+        return Err(Error::input(path, "decoded size differs from the header"));
+    }
+    if let Some(i) = img.pixels.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+        return Err(Error::input(
+            path,
+            format!(
+                "pixel ({}, {}) is {:?}; radiance must be finite",
+                i as u32 % img.width,
+                i as u32 / img.width,
+                img.pixels[i]
+            ),
+        ));
+    }
+    Ok(img)
+}
+
+/// Writes a half-float RGB EXR (ZIP compressed), through a temp file and a rename.
+pub fn write_exr(path: &Path, img: &RgbImage) -> Result<()> {
+    use exr::prelude::*;
+    let w = img.width as usize;
+    let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
+        let p = img.pixels[pos.y() * w + pos.x()];
+        (f16::from_f32(p[0]), f16::from_f32(p[1]), f16::from_f32(p[2]))
+    });
+    let layer = Layer::new(
+        (img.width as usize, img.height as usize),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        channels,
+    );
+    let tmp = crate::scene::temp_path(path);
+    Image::from_layer(layer)
+        .write()
+        .to_file(&tmp)
+        .map_err(|e| crate::Error::input(path, format!("cannot write EXR: {e}")))?;
+    std::fs::rename(&tmp, path).map_err(|e| crate::Error::io(path, e))
+}
+
+/// Writes an 8-bit sRGB PNG of linear values times `exposure`.
+pub fn write_png(path: &Path, img: &RgbImage, exposure: f32) -> Result<()> {
+    let mut buf = image::RgbImage::new(img.width, img.height);
+    for (i, p) in buf.pixels_mut().enumerate() {
+        let v = img.pixels[i];
+        *p = image::Rgb(v.map(|c| (linear_to_srgb(c * exposure) * 255.0 + 0.5) as u8));
+    }
+    let tmp = crate::scene::temp_path(path);
+    buf.save_with_format(&tmp, image::ImageFormat::Png)
+        .map_err(|e| Error::input(path, format!("cannot write PNG: {e}")))?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+}

@@ -1,0 +1,265 @@
+//! Scenes: calibrated views, a proxy mesh, lights and lighting presets, loaded from Relit's
+//! `scene.json`, a COLMAP text model, or the SIBR/Bundler layout of the paper's authors.
+//! Every loader converts cameras to the one convention of [`camera`].
+
+pub mod camera;
+mod colmap;
+pub mod image;
+mod json;
+pub mod mesh;
+mod sibr;
+pub mod synth;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+pub use camera::{Camera, GpuCamera};
+pub use image::RgbImage;
+pub use json::SCENE_FILE;
+pub use mesh::Mesh;
+
+use crate::error::{Error, Result};
+
+/// Largest accepted image side, in pixels.
+pub const MAX_IMAGE_DIM: u32 = 16384;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneFormat {
+    Relit,
+    Colmap,
+    Sibr,
+}
+
+impl std::fmt::Display for SceneFormat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SceneFormat::Relit => "relit scene.json",
+            SceneFormat::Colmap => "COLMAP text",
+            SceneFormat::Sibr => "SIBR (Bundler)",
+        })
+    }
+}
+
+/// One input photograph and its camera.
+#[derive(Clone, Debug)]
+pub struct View {
+    pub name: String,
+    pub image: PathBuf,
+    pub camera: Camera,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum LightShape {
+    /// A parallelogram: `corner`, `corner + edge_u`, `corner + edge_v`, `corner + edge_u + edge_v`;
+    /// it emits on the side of `edge_u × edge_v`.
+    Quad { corner: Vec3, edge_u: Vec3, edge_v: Vec3 },
+    /// A disk emitting on the side of `normal`.
+    Disk { center: Vec3, normal: Vec3, radius: f32 },
+}
+
+impl LightShape {
+    pub fn area(&self) -> f32 {
+        match self {
+            LightShape::Quad { edge_u, edge_v, .. } => edge_u.cross(*edge_v).length(),
+            LightShape::Disk { radius, .. } => std::f32::consts::PI * radius * radius,
+        }
+    }
+    pub fn center(&self) -> Vec3 {
+        match self {
+            LightShape::Quad { corner, edge_u, edge_v } => *corner + 0.5 * (*edge_u + *edge_v),
+            LightShape::Disk { center, .. } => *center,
+        }
+    }
+}
+
+/// An area light with constant emitted radiance (§4.1.3).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Light {
+    pub name: String,
+    pub shape: LightShape,
+    pub radiance: [f32; 3],
+    /// Part of the captured (original) lighting rather than a light the user adds.
+    pub original: bool,
+}
+
+/// Intensities of the added lights and the dimming of the original lighting, `α_dim` (§4.1.4).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightingPreset {
+    pub name: String,
+    pub dim: f32,
+    pub intensities: BTreeMap<String, f32>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub root: PathBuf,
+    pub format: SceneFormat,
+    pub views: Vec<View>,
+    pub mesh_path: PathBuf,
+    pub mesh: Mesh,
+    /// The exact geometry of a synthetic scene (absent for real captures).
+    pub true_mesh_path: Option<PathBuf>,
+    pub lights: Vec<Light>,
+    pub presets: Vec<LightingPreset>,
+}
+
+impl Scene {
+    /// Loads a scene directory in whichever format it holds (or a `scene.json` path).
+    pub fn load(path: &Path) -> Result<Scene> {
+        if path.is_file() && path.file_name().is_some_and(|n| n == SCENE_FILE) {
+            return json::load(path.parent().unwrap_or(Path::new(".")));
+        }
+        if !path.is_dir() {
+            return Err(Error::input(path, "not a scene directory (it does not exist or is not a directory)"));
+        }
+        match detect(path) {
+            Some(SceneFormat::Relit) => json::load(path),
+            Some(SceneFormat::Colmap) => colmap::load(path),
+            Some(SceneFormat::Sibr) => sibr::load(path),
+            None => Err(Error::input(
+                path,
+                format!(
+                    "no scene found: expected {SCENE_FILE}, a COLMAP model (sparse/0/cameras.txt + \
+                     images.txt, or cameras.txt + images.txt), or SIBR's cameras/bundle.out"
+                ),
+            )),
+        }
+    }
+
+    /// Loads every image and checks it against its camera (size, finite values).
+    pub fn check_images(&self) -> Result<()> {
+        for v in &self.views {
+            let (w, h) = image::image_size(&v.image)?;
+            if (w, h) != (v.camera.width, v.camera.height) {
+                return Err(Error::input(
+                    &v.image,
+                    format!(
+                        "image is {w}x{h} but its camera (view {}) says {}x{}",
+                        v.name, v.camera.width, v.camera.height
+                    ),
+                ));
+            }
+            image::load_rgb(&v.image)?;
+        }
+        Ok(())
+    }
+
+    pub fn preset(&self, name: &str) -> Option<&LightingPreset> {
+        self.presets.iter().find(|p| p.name == name)
+    }
+
+    /// Checks what all formats share: views, cameras, lights, presets.
+    pub(crate) fn validate(&self, file: &Path) -> Result<()> {
+        if self.views.is_empty() {
+            return Err(Error::input(file, "scene has no views"));
+        }
+        let mut names = std::collections::HashSet::new();
+        for v in &self.views {
+            v.camera
+                .validate()
+                .map_err(|m| Error::input(file, format!("view {}: camera: {m}", v.name)))?;
+            if !names.insert(&v.name) {
+                return Err(Error::input(file, format!("view name {} appears twice", v.name)));
+            }
+        }
+        for l in &self.lights {
+            if !l.radiance.iter().all(|v| v.is_finite() && *v >= 0.0) {
+                return Err(Error::input(
+                    file,
+                    format!("light {}: radiance {:?} must be finite and >= 0", l.name, l.radiance),
+                ));
+            }
+            if !(l.shape.area() > 0.0) {
+                return Err(Error::input(file, format!("light {}: zero area", l.name)));
+            }
+        }
+        for p in &self.presets {
+            if !(0.0..=1.0).contains(&p.dim) {
+                return Err(Error::input(
+                    file,
+                    format!("preset {}: dim = {}; expected 0 (keep) to 1 (remove)", p.name, p.dim),
+                ));
+            }
+            for (l, v) in &p.intensities {
+                if !self.lights.iter().any(|x| &x.name == l) {
+                    return Err(Error::input(
+                        file,
+                        format!("preset {}: names light \"{l}\", which the scene does not have", p.name),
+                    ));
+                }
+                if !(v.is_finite() && *v >= 0.0) {
+                    return Err(Error::input(
+                        file,
+                        format!("preset {}: intensity of {l} is {v}; expected >= 0", p.name),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Writes `scene`'s cameras, lights and presets in `format` under `dir` (images and mesh are
+/// expected to be there already, at the paths the scene names).
+pub fn write_scene(dir: &Path, scene: &Scene, format: SceneFormat) -> Result<()> {
+    match format {
+        SceneFormat::Relit => json::write(dir, scene),
+        SceneFormat::Colmap => colmap::write(dir, scene),
+        SceneFormat::Sibr => sibr::write(dir, scene),
+    }
+}
+
+/// Which format a directory holds.
+pub fn detect(dir: &Path) -> Option<SceneFormat> {
+    if dir.join(SCENE_FILE).is_file() {
+        Some(SceneFormat::Relit)
+    } else if colmap::model_dir(dir).is_some() {
+        Some(SceneFormat::Colmap)
+    } else if dir.join("cameras/bundle.out").is_file() {
+        Some(SceneFormat::Sibr)
+    } else {
+        None
+    }
+}
+
+/// The temp file beside `path` that [`write_atomic`] renames into place.
+pub fn temp_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".{}.tmp", std::process::id()));
+    path.with_file_name(name)
+}
+
+/// Writes a file so that readers never see it half-written: temp file, fsync, rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let tmp = temp_path(path);
+    let res = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if res.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    res.map_err(|e| Error::io(path, e))
+}
+
+/// Reads a text file, naming it in the error.
+pub(crate) fn read_text(path: &Path) -> Result<String> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    String::from_utf8(bytes).map_err(|_| Error::input(path, "file is not valid UTF-8 text"))
+}
+
+/// The mesh file of a capture: the first of `candidates` (relative to `dir`) that exists.
+pub(crate) fn find_mesh(dir: &Path, candidates: &[&str]) -> Result<PathBuf> {
+    candidates
+        .iter()
+        .map(|c| dir.join(c))
+        .find(|p| p.is_file())
+        .ok_or_else(|| {
+            Error::input(dir, format!("no mesh found; expected one of {}", candidates.join(", ")))
+        })
+}

@@ -1,0 +1,24 @@
+#version 460
+// Writes world position + camera depth, the triangle's geometric normal (winding order,
+// counter-clockwise = front), and the triangle id + 1 (0 = background).
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_scalar_block_layout : require
+#include "camera.glsl"
+
+layout(push_constant, scalar) uniform Push { Camera cam; } pc;
+layout(set = 0, binding = 0, scalar) readonly buffer Positions { vec3 positions[]; };
+layout(set = 0, binding = 1, scalar) readonly buffer Indices { uvec3 tris[]; };
+
+layout(location = 0) in vec3 world_pos;
+layout(location = 1) in float cam_z;
+layout(location = 0) out vec4 out_pos_depth;
+layout(location = 1) out vec4 out_normal;
+layout(location = 2) out uint out_tri;
+
+void main() {
+    uvec3 t = tris[gl_PrimitiveID];
+    vec3 a = positions[t.x], b = positions[t.y], c = positions[t.z];
+    out_pos_depth = vec4(world_pos, cam_z);
+    out_normal = vec4(normalize(cross(b - a, c - a)), 0.0);
+    out_tri = uint(gl_PrimitiveID) + 1u;
+}

@@ -1,0 +1,140 @@
+//! `relit bench …`: throughput figures from GPU timestamps. Nothing here passes or fails.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Result;
+use clap::Subcommand;
+use glam::Vec3;
+use relit_engine::gpu::{vk, Buffer, GpuOptions, MemoryLocation, RayScene, Timer};
+use relit_engine::scene::{synth, Mesh};
+use relit_engine::trace::{Hit, Ray, RayCaster};
+
+#[derive(Subcommand)]
+pub enum BenchCmd {
+    /// Ray-query rays per second (closest hit and any hit) and BLAS build time.
+    Rays {
+        /// Mesh to trace (.obj or .ply); default: a procedural room of ~100k triangles.
+        #[arg(long)]
+        mesh: Option<PathBuf>,
+        /// Rays per dispatch.
+        #[arg(long, default_value_t = 1 << 18)]
+        rays: u32,
+        /// Timed dispatches per mode (the median is reported).
+        #[arg(long, default_value_t = 3)]
+        repeats: u32,
+        /// Also write the figures as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+}
+
+pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
+    match cmd {
+        BenchCmd::Rays { mesh, rays, repeats, json } => rays_bench(mesh.as_ref(), *rays, *repeats, json.as_ref(), opts),
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// Random rays from points inside the mesh's bounds, uniform directions. Occlusion rays are
+/// short (0.2–2 m), like shadow and visibility rays in the bake.
+fn make_rays(mesh: &Mesh, n: u32, occlusion: bool, seed: u64) -> Vec<Ray> {
+    let (lo, hi) = mesh.bounds();
+    let mut rng = synth::Rng::new(seed);
+    (0..n)
+        .map(|_| {
+            let o = lo + (hi - lo) * Vec3::new(rng.range(0.1, 0.9), rng.range(0.1, 0.9), rng.range(0.1, 0.9));
+            let z = rng.range(-1.0, 1.0);
+            let phi = rng.range(0.0, std::f32::consts::TAU);
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+            Ray {
+                origin: o.into(),
+                tmin: 1e-4,
+                dir: d.into(),
+                tmax: if occlusion { rng.range(0.2, 2.0) } else { 1e4 },
+            }
+        })
+        .collect()
+}
+
+fn rays_bench(
+    mesh_path: Option<&PathBuf>,
+    n: u32,
+    repeats: u32,
+    json: Option<&PathBuf>,
+    opts: &GpuOptions,
+) -> Result<()> {
+    let (mesh, name) = match mesh_path {
+        Some(p) => (Mesh::load(p)?, p.display().to_string()),
+        None => (synth::room(91).0, "procedural room (subdivision 91)".to_string()),
+    };
+    let gpu = crate::open_gpu(opts)?;
+    println!("device: {}", gpu.caps.name);
+    println!("mesh: {name}: {} triangles", mesh.triangles.len());
+    let t0 = Instant::now();
+    let scene = RayScene::new(&gpu, &mesh.positions, &mesh.triangles)?;
+    let build_s = t0.elapsed().as_secs_f64();
+    println!("BLAS+TLAS build (wall, incl. upload): {:.3} s", build_s);
+    let caster = RayCaster::new(&gpu)?;
+    let hits = Buffer::new(
+        &gpu,
+        "hits",
+        n as u64 * std::mem::size_of::<Hit>() as u64,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        MemoryLocation::GpuOnly,
+    )?;
+    let mut results = Vec::new();
+    for (mode, occlusion) in [("closest hit", false), ("any hit (occlusion)", true)] {
+        let rays = make_rays(&mesh, n, occlusion, 7);
+        let rb = Buffer::from_slice(&gpu, "rays", vk::BufferUsageFlags::STORAGE_BUFFER, &rays)?;
+        // The first dispatch compiles the shader on lavapipe: warm up untimed.
+        let mut err = Ok(());
+        gpu.submit(|cmd| err = caster.record(cmd, &scene, &rb, &hits, n.min(1024), occlusion))?;
+        err?;
+        let mut times = Vec::new();
+        let mut timer = Timer::new(&gpu, 1)?;
+        for _ in 0..repeats.max(1) {
+            timer.reset();
+            let mut err = Ok(());
+            gpu.submit(|cmd| {
+                err = timer
+                    .begin(cmd, mode)
+                    .and_then(|s| caster.record(cmd, &scene, &rb, &hits, n, occlusion).map(|_| s))
+                    .map(|s| timer.end(cmd, s));
+            })?;
+            err?;
+            times.push(timer.read()?[0].1);
+        }
+        let ms = median(times);
+        let hit_frac = {
+            let h: Vec<Hit> = hits.download_vec()?;
+            h.iter().take(n as usize).filter(|h| h.tri != u32::MAX).count() as f64 / n as f64
+        };
+        let rate = n as f64 / (ms * 1e-3);
+        println!(
+            "{mode:<22} {n} rays in {ms:.1} ms: {:.3} M rays/s ({:.0}% hit)",
+            rate * 1e-6,
+            hit_frac * 100.0
+        );
+        results.push(format!(
+            "{{\"mode\": \"{mode}\", \"rays\": {n}, \"ms\": {ms:.3}, \"mrays_per_s\": {:.4}, \"hit_fraction\": {hit_frac:.4}}}",
+            rate * 1e-6
+        ));
+    }
+    if let Some(p) = json {
+        let text = format!(
+            "{{\"device\": {:?}, \"mesh\": {:?}, \"triangles\": {}, \"build_s\": {build_s:.4}, \"results\": [{}]}}\n",
+            gpu.caps.name,
+            name,
+            mesh.triangles.len(),
+            results.join(", ")
+        );
+        relit_engine::scene::write_atomic(p, text.as_bytes())?;
+    }
+    Ok(())
+}

@@ -1,0 +1,253 @@
+//! `relit`: the command-line front end. Thin: every subcommand calls into the engine library.
+
+mod bench;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand, ValueEnum};
+use relit_engine::gpu::{self, DeviceChoice, Gpu, GpuOptions};
+use relit_engine::scene::{self, Scene, SceneFormat};
+
+#[derive(Parser)]
+#[command(name = "relit", version, about = "Free-viewpoint indoor neural relighting on Vulkan")]
+struct Cli {
+    /// Vulkan device: an index or part of its name (default: RELIT_DEVICE, else the best one).
+    #[arg(long, global = true, env = "RELIT_DEVICE")]
+    device: Option<String>,
+    /// Turn on the Khronos validation layer (also RELIT_VALIDATE=1).
+    #[arg(long, global = true)]
+    validate: bool,
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Print the Vulkan device, its required and optional features, and key limits.
+    Info,
+    /// Inspect or create scenes.
+    Scene {
+        #[command(subcommand)]
+        cmd: SceneCmd,
+    },
+    /// Benchmarks (GPU timestamps; figures, never pass/fail).
+    Bench {
+        #[command(subcommand)]
+        cmd: bench::BenchCmd,
+    },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum FormatArg {
+    Relit,
+    Colmap,
+    Sibr,
+}
+
+#[derive(Subcommand)]
+enum SceneCmd {
+    /// Load a scene in any format (scene.json, COLMAP text, SIBR) and print a summary.
+    Check {
+        dir: PathBuf,
+        /// Check headers only; do not decode every image.
+        #[arg(long)]
+        quick: bool,
+    },
+    /// Write the small procedural test room (CPU-shaded EXR views) in one of the formats.
+    Synth {
+        dir: PathBuf,
+        #[arg(long, value_enum, default_value = "relit")]
+        format: FormatArg,
+        #[arg(long, default_value_t = 6)]
+        views: usize,
+        /// Image size WxH.
+        #[arg(long, default_value = "64x48", value_parser = parse_res)]
+        res: (u32, u32),
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+}
+
+pub fn parse_res(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once('x').ok_or_else(|| format!("\"{s}\": expected WxH, e.g. 256x192"))?;
+    let w: u32 = w.parse().map_err(|_| format!("\"{s}\": width is not a number"))?;
+    let h: u32 = h.parse().map_err(|_| format!("\"{s}\": height is not a number"))?;
+    if w == 0 || h == 0 || w > scene::MAX_IMAGE_DIM || h > scene::MAX_IMAGE_DIM {
+        return Err(format!("\"{s}\": each side must be 1..={}", scene::MAX_IMAGE_DIM));
+    }
+    Ok((w, h))
+}
+
+fn gpu_options(cli: &Cli) -> GpuOptions {
+    let mut o = GpuOptions::default();
+    if let Some(d) = &cli.device {
+        o.device = DeviceChoice::parse(d);
+    }
+    o.validation |= cli.validate;
+    o
+}
+
+pub fn open_gpu(opts: &GpuOptions) -> Result<Arc<Gpu>> {
+    Gpu::new(opts).context("opening the Vulkan device")
+}
+
+fn yes(b: bool) -> &'static str {
+    if b {
+        "yes"
+    } else {
+        "no"
+    }
+}
+
+fn info(opts: &GpuOptions) -> Result<()> {
+    let entry = gpu::load_entry()?;
+    println!("Vulkan devices:");
+    for (i, c) in gpu::list_devices()?.iter().enumerate() {
+        let missing = c.missing();
+        println!(
+            "  [{i}] {} ({:?}), driver {} {}{}",
+            c.name,
+            c.device_type,
+            c.driver_name,
+            c.driver_info,
+            if missing.is_empty() {
+                String::new()
+            } else {
+                format!(" — cannot run Relit: missing {}", missing.join(", "))
+            }
+        );
+    }
+    println!("validation layer installed: {}", yes(gpu::validation_layer_available(&entry)));
+    let g = open_gpu(opts)?;
+    let c = &g.caps;
+    let v = c.api_version;
+    println!("\nusing: {}", c.name);
+    println!("  type: {:?}", c.device_type);
+    println!("  driver: {} ({})", c.driver_name, c.driver_info);
+    println!(
+        "  Vulkan: {}.{}.{}",
+        gpu::vk::api_version_major(v),
+        gpu::vk::api_version_minor(v),
+        gpu::vk::api_version_patch(v)
+    );
+    println!("required features:");
+    for (name, ok) in &c.required {
+        println!("  {name:<34} {}", yes(*ok));
+    }
+    println!("optional features:");
+    println!("  {:<34} {}", "cooperative matrix", yes(!c.coop_matrix.is_empty()));
+    for s in &c.coop_matrix {
+        println!(
+            "    {}x{}x{} A={:?} B={:?} C={:?} result={:?} scope={:?}",
+            s.m, s.n, s.k, s.a, s.b, s.c, s.result, s.scope
+        );
+    }
+    println!("  {:<34} {}", "BC texture compression", yes(c.bc_compression));
+    println!("  {:<34} {}", "BC6H sampled with linear filter", yes(c.bc6h_sampled_linear));
+    println!("network path: {}", g.network_path());
+    println!("limits:");
+    println!("  maxStorageBufferRange              {} MiB", c.max_storage_buffer_range >> 20);
+    println!("  maxImageDimension2D                {}", c.max_image_dimension_2d);
+    println!("  maxImageArrayLayers                {}", c.max_image_array_layers);
+    println!("  maxPushConstantsSize               {}", c.max_push_constants_size);
+    println!("  maxComputeWorkGroupInvocations     {}", c.max_compute_workgroup_invocations);
+    println!("  maxComputeSharedMemorySize         {} KiB", c.max_compute_shared_memory >> 10);
+    println!("  subgroupSize                       {}", c.subgroup_size);
+    println!("  timestampPeriod                    {} ns ({} valid bits)", c.timestamp_period_ns, c.timestamp_valid_bits);
+    println!("  maxPrimitiveCount (BLAS)           {}", c.max_primitive_count);
+    println!("  memory types                       {}", c.memory_types.len());
+    for (flags, heap) in &c.memory_types {
+        println!("    heap {heap}: {flags:?}");
+    }
+    Ok(())
+}
+
+fn scene_check(dir: &PathBuf, quick: bool) -> Result<()> {
+    let s = Scene::load(dir)?;
+    if !quick {
+        s.check_images()?;
+    }
+    let (lo, hi) = s.mesh.bounds();
+    let mut sizes: Vec<(u32, u32)> = s.views.iter().map(|v| (v.camera.width, v.camera.height)).collect();
+    sizes.sort();
+    sizes.dedup();
+    println!("scene: {} ({})", s.root.display(), s.format);
+    println!("views: {}", s.views.len());
+    println!(
+        "resolution: {}",
+        sizes.iter().map(|(w, h)| format!("{w}x{h}")).collect::<Vec<_>>().join(", ")
+    );
+    println!(
+        "mesh: {} ({} vertices, {} triangles)",
+        s.mesh_path.display(),
+        s.mesh.positions.len(),
+        s.mesh.triangles.len()
+    );
+    println!(
+        "bounds: [{:.3}, {:.3}, {:.3}] – [{:.3}, {:.3}, {:.3}] m",
+        lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+    );
+    if let Some(t) = &s.true_mesh_path {
+        println!("true mesh: {}", t.display());
+    }
+    println!("lights: {}", s.lights.len());
+    for l in &s.lights {
+        let kind = match l.shape {
+            scene::LightShape::Quad { .. } => "quad",
+            scene::LightShape::Disk { .. } => "disk",
+        };
+        let c = l.shape.center();
+        println!(
+            "  {} ({kind}{}) at [{:.2}, {:.2}, {:.2}], area {:.3} m², radiance {:?}",
+            l.name,
+            if l.original { ", original" } else { "" },
+            c.x,
+            c.y,
+            c.z,
+            l.shape.area(),
+            l.radiance
+        );
+    }
+    println!("presets: {}", s.presets.len());
+    for p in &s.presets {
+        println!("  {}: dim {}, intensities {:?}", p.name, p.dim, p.intensities);
+    }
+    println!(
+        "images: {}",
+        if quick { "headers not decoded (--quick)" } else { "all decoded, sizes match cameras, values finite" }
+    );
+    Ok(())
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let opts = gpu_options(&cli);
+    let res = match &cli.cmd {
+        Cmd::Info => info(&opts),
+        Cmd::Scene { cmd: SceneCmd::Check { dir, quick } } => scene_check(dir, *quick),
+        Cmd::Scene { cmd: SceneCmd::Synth { dir, format, views, res, seed } } => {
+            let format = match format {
+                FormatArg::Relit => SceneFormat::Relit,
+                FormatArg::Colmap => SceneFormat::Colmap,
+                FormatArg::Sibr => SceneFormat::Sibr,
+            };
+            let o = scene::synth::SynthOptions {
+                views: *views,
+                width: res.0,
+                height: res.1,
+                seed: *seed,
+                ..Default::default()
+            };
+            scene::synth::write_room(dir, format, &o)
+                .map(|s| println!("wrote {} views ({format}) to {}", s.views.len(), dir.display()))
+                .map_err(Into::into)
+        }
+        Cmd::Bench { cmd } => bench::run(cmd, &opts),
+    };
+    if let Err(e) = res {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
