@@ -74,8 +74,8 @@ impl GbufferPass {
                 frag: "raster/gbuffer.frag",
                 color_formats: &[POS_DEPTH_FORMAT, NORMAL_FORMAT, TRI_FORMAT],
                 depth_format: Some(DEPTH_FORMAT),
-                vertex_stride: 12,
-                attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0)],
+                vertex_stride: 0,
+                attributes: &[],
                 cull: vk::CullModeFlags::NONE,
             },
         )?;
@@ -157,9 +157,7 @@ impl GbufferPass {
                 }],
             );
             d.cmd_set_scissor(cmd, 0, &[area]);
-            d.cmd_bind_vertex_buffers(cmd, 0, &[mesh.positions.raw], &[0]);
-            d.cmd_bind_index_buffer(cmd, mesh.indices.raw, 0, vk::IndexType::UINT32);
-            d.cmd_draw_indexed(cmd, mesh.triangle_count * 3, 1, 0, 0, 0);
+            d.cmd_draw(cmd, mesh.triangle_count * 3, 1, 0, 0);
             d.cmd_end_rendering(cmd);
         }
         for img in [&out.pos_depth, &out.normal, &out.tri] {

@@ -7,18 +7,20 @@
 
 layout(push_constant, scalar) uniform Push { Camera cam; } pc;
 layout(set = 0, binding = 0, scalar) readonly buffer Positions { vec3 positions[]; };
-layout(set = 0, binding = 1, scalar) readonly buffer Indices { uvec3 tris[]; };
+layout(set = 0, binding = 1, scalar) readonly buffer Indices { uint indices[]; };
 
 layout(location = 0) in vec3 world_pos;
 layout(location = 1) in float cam_z;
+layout(location = 2) flat in uint tri;
 layout(location = 0) out vec4 out_pos_depth;
 layout(location = 1) out vec4 out_normal;
 layout(location = 2) out uint out_tri;
 
 void main() {
-    uvec3 t = tris[gl_PrimitiveID];
-    vec3 a = positions[t.x], b = positions[t.y], c = positions[t.z];
+    vec3 a = positions[indices[3u * tri]];
+    vec3 b = positions[indices[3u * tri + 1u]];
+    vec3 c = positions[indices[3u * tri + 2u]];
     out_pos_depth = vec4(world_pos, cam_z);
     out_normal = vec4(normalize(cross(b - a, c - a)), 0.0);
-    out_tri = uint(gl_PrimitiveID) + 1u;
+    out_tri = tri + 1u;
 }

@@ -125,20 +125,20 @@ impl RayScene {
                 gpu.caps.max_primitive_count
             )));
         }
-        // The same buffers feed the BLAS build, shaders (hit interpolation) and rasterization.
+        // The same buffers feed the BLAS build and shaders (hit interpolation, rasterization).
         let input = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
             | vk::BufferUsageFlags::STORAGE_BUFFER;
         let pos = Buffer::from_slice(
             gpu,
             "mesh positions",
-            input | vk::BufferUsageFlags::VERTEX_BUFFER,
+            input,
             positions,
         )?;
         let idx = Buffer::from_slice(
             gpu,
             "mesh indices",
-            input | vk::BufferUsageFlags::INDEX_BUFFER,
+            input,
             indices,
         )?;
         let tris = vk::AccelerationStructureGeometryTrianglesDataKHR::default()

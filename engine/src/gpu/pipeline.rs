@@ -277,9 +277,12 @@ impl Pipeline {
                     .offset(*off)
             })
             .collect();
-        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
-            .vertex_binding_descriptions(&vb)
-            .vertex_attribute_descriptions(&attrs);
+        let mut vertex_input = vk::PipelineVertexInputStateCreateInfo::default();
+        if !desc.attributes.is_empty() {
+            vertex_input = vertex_input
+                .vertex_binding_descriptions(&vb)
+                .vertex_attribute_descriptions(&attrs);
+        }
         let ia = vk::PipelineInputAssemblyStateCreateInfo::default()
             .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
         let vp = vk::PipelineViewportStateCreateInfo::default()

@@ -1,0 +1,31 @@
+//! Shared test helpers: a Vulkan device with validation whenever the layer is installed, and
+//! a check that no validation error was reported.
+
+#![allow(dead_code)]
+
+use std::sync::Arc;
+
+use relit_engine::gpu::{self, DeviceChoice, Gpu, GpuOptions};
+
+pub fn gpu() -> Arc<Gpu> {
+    let entry = gpu::load_entry().expect("Vulkan loader");
+    let validation = gpu::validation_layer_available(&entry);
+    if !validation {
+        eprintln!("note: VK_LAYER_KHRONOS_validation not installed; running without validation");
+    }
+    Gpu::new(&GpuOptions { device: DeviceChoice::from_env(), validation })
+        .unwrap_or_else(|e| panic!("cannot open a Vulkan device: {e}"))
+}
+
+/// Fails the test if the validation layer reported any error on `gpu`.
+pub fn assert_no_validation_errors(gpu: &Gpu) {
+    unsafe { gpu.device.device_wait_idle().expect("device idle") };
+    assert_eq!(gpu.validation_errors(), 0, "validation errors were reported (see stderr)");
+}
+
+pub fn tempdir(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("relit-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
