@@ -35,7 +35,10 @@ impl IncludeHandler for Includer {
             let p = dir.join(header);
             if let Ok(data) = std::fs::read_to_string(&p) {
                 self.seen.push(p.clone());
-                return Some(IncludeResult { name: p.to_string_lossy().into_owned(), data });
+                return Some(IncludeResult {
+                    name: p.to_string_lossy().into_owned(),
+                    data,
+                });
             }
         }
         None
@@ -89,9 +92,16 @@ fn main() {
     let mut errors = Vec::new();
     for path in &files {
         println!("cargo:rerun-if-changed={}", path.display());
-        let Some(stage) = stage_of(path) else { continue };
-        let rel = path.strip_prefix(&src_root).unwrap().to_string_lossy().replace('\\', "/");
-        let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let Some(stage) = stage_of(path) else {
+            continue;
+        };
+        let rel = path
+            .strip_prefix(&src_root)
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        let text =
+            std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let source = ShaderSource::from(text);
         let mut includer = Includer {
             root_dir: path.parent().unwrap().to_path_buf(),
@@ -114,11 +124,18 @@ fn main() {
                 let spv = out_dir.join(rel.replace('/', "__") + ".spv");
                 let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
                 std::fs::write(&spv, bytes).unwrap();
-                writeln!(table, "    ({rel:?}, include_bytes!({:?})),", spv.display().to_string()).unwrap();
+                writeln!(
+                    table,
+                    "    ({rel:?}, include_bytes!({:?})),",
+                    spv.display().to_string()
+                )
+                .unwrap();
             }
             Err(e) => {
                 // glslang names the top-level source "0"; put the file path there.
-                let msg = e.to_string().replace("ERROR: 0:", &format!("ERROR: {}:", path.display()));
+                let msg = e
+                    .to_string()
+                    .replace("ERROR: 0:", &format!("ERROR: {}:", path.display()));
                 errors.push(format!("{}:\n{msg}", path.display()));
             }
         }
@@ -128,7 +145,11 @@ fn main() {
         for e in &errors {
             eprintln!("{e}");
         }
-        panic!("{} shader(s) failed to compile:\n{}", errors.len(), errors.join("\n"));
+        panic!(
+            "{} shader(s) failed to compile:\n{}",
+            errors.len(),
+            errors.join("\n")
+        );
     }
     std::fs::write(out_dir.join("shaders.rs"), table).unwrap();
 }

@@ -5,7 +5,9 @@ mod common;
 
 use glam::Vec3;
 use relit_engine::cpu;
-use relit_engine::gpu::{self, vk, Buffer, DeviceChoice, Gpu, GpuOptions, MemoryLocation, Pipeline, RayScene, Timer};
+use relit_engine::gpu::{
+    self, vk, Buffer, DeviceChoice, Gpu, GpuOptions, MemoryLocation, Pipeline, RayScene, Timer,
+};
 use relit_engine::raster::GbufferPass;
 use relit_engine::scene::synth::{self, Rng, SynthOptions};
 use relit_engine::scene::Mesh;
@@ -18,7 +20,11 @@ fn test_mesh() -> Mesh {
     let mut rng = Rng::new(42);
     let mut soup = Mesh::default();
     for i in 0..120u32 {
-        let c = Vec3::new(rng.range(-1.7, 1.7), rng.range(0.2, 2.4), rng.range(-1.5, 1.5));
+        let c = Vec3::new(
+            rng.range(-1.7, 1.7),
+            rng.range(0.2, 2.4),
+            rng.range(-1.5, 1.5),
+        );
         let s = rng.range(0.05, 0.35);
         for _ in 0..3 {
             let p = c + Vec3::new(rng.range(-s, s), rng.range(-s, s), rng.range(-s, s));
@@ -36,11 +42,17 @@ fn gbuffer_matches_cpu_ray_cast() {
     let mesh = test_mesh();
     let scene = RayScene::new(&gpu, &mesh.positions, &mesh.triangles).unwrap();
     let pass = GbufferPass::new(&gpu).unwrap();
-    let cams = synth::capture_cameras(&SynthOptions { views: 3, width: 64, height: 48, ..Default::default() });
+    let cams = synth::capture_cameras(&SynthOptions {
+        views: 3,
+        width: 64,
+        height: 48,
+        ..Default::default()
+    });
     for cam in &cams {
         let (near, far) = (0.05, 50.0);
         let g = pass.render(&scene, cam, near, far).unwrap();
-        let (pos, nrm, tri) = g.download().unwrap();
+        let px = g.download().unwrap();
+        let (pos, nrm, tri) = (px.pos_depth, px.normal, px.tri);
         let r = cpu::gbuffer(&mesh, cam, near, far);
         let n = tri.len();
         let (mut id_mismatch, mut depth_bad) = (0, 0);
@@ -56,19 +68,32 @@ fn gbuffer_matches_cpu_ray_cast() {
             }
             if tri[i] == r.tri[i] && tri[i] != 0 {
                 let ng = Vec3::new(nrm[i][0], nrm[i][1], nrm[i][2]);
-                assert!(ng.dot(Vec3::from(r.normal[i])) > 0.9999, "pixel {i}: normal {ng} vs {:?}", r.normal[i]);
+                assert!(
+                    ng.dot(Vec3::from(r.normal[i])) > 0.9999,
+                    "pixel {i}: normal {ng} vs {:?}",
+                    r.normal[i]
+                );
                 // World position = camera centre + depth along the pixel ray.
                 let x = (i % 64) as f32 + 0.5;
                 let y = (i / 64) as f32 + 0.5;
                 let p = cam.center() + cam.ray_dir(glam::Vec2::new(x, y)) * dc;
                 let pg = Vec3::new(pos[i][0], pos[i][1], pos[i][2]);
-                assert!((pg - p).length() < 1e-3 * dc.max(1.0), "pixel {i}: position {pg} vs {p}");
+                assert!(
+                    (pg - p).length() < 1e-3 * dc.max(1.0),
+                    "pixel {i}: position {pg} vs {p}"
+                );
             }
         }
         // Edges between triangles may go either way under the two rules: allow 5% of pixels
         // to name another triangle and 2% to land on another surface (silhouettes).
-        assert!(id_mismatch * 20 <= n, "{id_mismatch} of {n} pixels hit another triangle");
-        assert!(depth_bad * 50 <= n, "{depth_bad} of {n} pixels disagree on depth");
+        assert!(
+            id_mismatch * 20 <= n,
+            "{id_mismatch} of {n} pixels hit another triangle"
+        );
+        assert!(
+            depth_bad * 50 <= n,
+            "{depth_bad} of {n} pixels disagree on depth"
+        );
     }
     common::assert_no_validation_errors(&gpu);
 }
@@ -78,11 +103,31 @@ fn random_rays(mesh: &Mesh, n: usize, seed: u64) -> Vec<Ray> {
     let mut rng = Rng::new(seed);
     (0..n)
         .map(|_| {
-            let o = lo + (hi - lo) * Vec3::new(rng.range(0.05, 0.95), rng.range(0.05, 0.95), rng.range(0.05, 0.95));
-            let d = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)).normalize();
+            let o = lo
+                + (hi - lo)
+                    * Vec3::new(
+                        rng.range(0.05, 0.95),
+                        rng.range(0.05, 0.95),
+                        rng.range(0.05, 0.95),
+                    );
+            let d = Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            )
+            .normalize();
             // Some rays are short enough to miss everything.
-            let tmax = if rng.f32() < 0.3 { rng.range(0.05, 1.0) } else { 100.0 };
-            Ray { origin: o.into(), tmin: 1e-3, dir: d.into(), tmax }
+            let tmax = if rng.f32() < 0.3 {
+                rng.range(0.05, 1.0)
+            } else {
+                100.0
+            };
+            Ray {
+                origin: o.into(),
+                tmin: 1e-3,
+                dir: d.into(),
+                tmax,
+            }
         })
         .collect()
 }
@@ -104,19 +149,46 @@ fn ray_query_matches_cpu_brute_force() {
         match c {
             None => {
                 misses += 1;
-                assert_eq!(h.tri, u32::MAX, "ray {i}: GPU hit {} at t={}, CPU missed", h.tri, h.t);
+                assert_eq!(
+                    h.tri,
+                    u32::MAX,
+                    "ray {i}: GPU hit {} at t={}, CPU missed",
+                    h.tri,
+                    h.t
+                );
             }
             Some(c) => {
-                assert_ne!(h.tri, u32::MAX, "ray {i}: GPU missed, CPU hit {} at {}", c.tri, c.t);
-                assert!((h.t - c.t).abs() <= 1e-4 * c.t.max(1.0), "ray {i}: t {} vs {}", h.t, c.t);
+                assert_ne!(
+                    h.tri,
+                    u32::MAX,
+                    "ray {i}: GPU missed, CPU hit {} at {}",
+                    c.tri,
+                    c.t
+                );
+                assert!(
+                    (h.t - c.t).abs() <= 1e-4 * c.t.max(1.0),
+                    "ray {i}: t {} vs {}",
+                    h.t,
+                    c.t
+                );
                 if h.tri == c.tri {
-                    assert!((h.bary[0] - c.bary[0]).abs() < 1e-3 && (h.bary[1] - c.bary[1]).abs() < 1e-3, "ray {i}: barycentrics");
+                    assert!(
+                        (h.bary[0] - c.bary[0]).abs() < 1e-3
+                            && (h.bary[1] - c.bary[1]).abs() < 1e-3,
+                        "ray {i}: barycentrics"
+                    );
                 } else {
                     // A tie on a shared edge: the GPU's triangle must be hit at the same t.
                     ties += 1;
                     let [a, b, cc] = mesh.corners(h.tri as usize).map(|v| v.as_dvec3());
-                    let t = cpu::ray_triangle(o.as_dvec3(), d.as_dvec3(), a, b, cc).map(|x| x.0 as f32);
-                    assert!(t.is_some_and(|t| (t - c.t).abs() <= 1e-4 * c.t.max(1.0)), "ray {i}: triangle {} vs {}", h.tri, c.tri);
+                    let t =
+                        cpu::ray_triangle(o.as_dvec3(), d.as_dvec3(), a, b, cc).map(|x| x.0 as f32);
+                    assert!(
+                        t.is_some_and(|t| (t - c.t).abs() <= 1e-4 * c.t.max(1.0)),
+                        "ray {i}: triangle {} vs {}",
+                        h.tri,
+                        c.tri
+                    );
                 }
             }
         }
@@ -127,7 +199,10 @@ fn ray_query_matches_cpu_brute_force() {
             assert_eq!(occl[i].tri != u32::MAX, cpu_occ, "ray {i}: occlusion");
         }
     }
-    assert!(misses > 20, "the test rays should include misses ({misses})");
+    assert!(
+        misses > 20,
+        "the test rays should include misses ({misses})"
+    );
     assert!(ties * 50 <= rays.len(), "too many edge ties: {ties}");
     common::assert_no_validation_errors(&gpu);
 }
@@ -137,9 +212,11 @@ fn forced_staging_gives_the_same_results() {
     let gpu = common::gpu();
     // Direct mapping first, then the staging path lavapipe never takes on its own.
     let data: Vec<u32> = (0..10_000u32).map(|i| i.wrapping_mul(2654435761)).collect();
-    let direct = Buffer::from_slice(&gpu, "direct", vk::BufferUsageFlags::STORAGE_BUFFER, &data).unwrap();
+    let direct =
+        Buffer::from_slice(&gpu, "direct", vk::BufferUsageFlags::STORAGE_BUFFER, &data).unwrap();
     gpu.set_force_staging(true);
-    let staged = Buffer::from_slice(&gpu, "staged", vk::BufferUsageFlags::STORAGE_BUFFER, &data).unwrap();
+    let staged =
+        Buffer::from_slice(&gpu, "staged", vk::BufferUsageFlags::STORAGE_BUFFER, &data).unwrap();
     assert_eq!(staged.download_vec::<u32>().unwrap(), data);
     assert_eq!(direct.download_vec::<u32>().unwrap(), data);
     let part = staged.download_range(400, 40).unwrap();
@@ -160,7 +237,9 @@ fn forced_staging_gives_the_same_results() {
 }
 
 fn bytemuck_u32(b: &[u8]) -> Vec<u32> {
-    b.chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().unwrap())).collect()
+    b.chunks_exact(4)
+        .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
+        .collect()
 }
 
 #[test]
@@ -176,7 +255,10 @@ fn layouts_come_from_reflection() {
     assert_eq!(f.sets[&0].len(), 2);
     assert_eq!(f.push_size, 80, "Camera push block is 5 vec4");
     // Cooperative-matrix kernels take the layout of their portable twin.
-    assert_eq!(gpu::layout_source("net/conv3x3_cm.comp"), "net/conv3x3.comp");
+    assert_eq!(
+        gpu::layout_source("net/conv3x3_cm.comp"),
+        "net/conv3x3.comp"
+    );
     assert_eq!(gpu::layout_source("net/conv3x3.comp"), "net/conv3x3.comp");
     // Every embedded shader reflects (the cooperative-matrix ones through their twin).
     for name in gpu::shader_names() {
@@ -188,27 +270,58 @@ fn layouts_come_from_reflection() {
 fn pipeline_rejects_wrong_bindings() {
     let gpu = common::gpu();
     let p = Pipeline::compute(&gpu, "trace/rays.comp").unwrap();
-    let b = Buffer::new(&gpu, "b", 64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuOnly).unwrap();
+    let b = Buffer::new(
+        &gpu,
+        "b",
+        64,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        MemoryLocation::GpuOnly,
+    )
+    .unwrap();
     let err = gpu
-        .submit(|cmd| p.bind(cmd, &[(0, gpu::Bind::Buffer(&b)), (1, gpu::Bind::Buffer(&b)), (2, gpu::Bind::Buffer(&b))], &[0; 8]))
+        .submit(|cmd| {
+            p.bind(
+                cmd,
+                &[
+                    (0, gpu::Bind::Buffer(&b)),
+                    (1, gpu::Bind::Buffer(&b)),
+                    (2, gpu::Bind::Buffer(&b)),
+                ],
+                &[0; 8],
+            )
+        })
         .unwrap()
         .unwrap_err();
     assert!(err.to_string().contains("binding 0"), "{err}");
-    let err = gpu.submit(|cmd| p.bind(cmd, &[(1, gpu::Bind::Buffer(&b))], &[0; 8])).unwrap().unwrap_err();
+    let err = gpu
+        .submit(|cmd| p.bind(cmd, &[(1, gpu::Bind::Buffer(&b))], &[0; 8]))
+        .unwrap()
+        .unwrap_err();
     assert!(err.to_string().contains("not given"), "{err}");
     common::assert_no_validation_errors(&gpu);
 }
 
 #[test]
 fn device_choice_errors_name_the_devices() {
-    let err = Gpu::new(&GpuOptions { device: DeviceChoice::Name("no-such-gpu-xyz".into()), validation: false })
-        .err()
-        .expect("must fail");
+    let err = Gpu::new(&GpuOptions {
+        device: DeviceChoice::Name("no-such-gpu-xyz".into()),
+        validation: false,
+    })
+    .err()
+    .expect("must fail");
     assert!(err.to_string().contains("no-such-gpu-xyz"), "{err}");
-    let err = Gpu::new(&GpuOptions { device: DeviceChoice::Index(99), validation: false }).err().expect("must fail");
+    let err = Gpu::new(&GpuOptions {
+        device: DeviceChoice::Index(99),
+        validation: false,
+    })
+    .err()
+    .expect("must fail");
     assert!(err.to_string().contains("out of range"), "{err}");
     assert!(matches!(DeviceChoice::parse("1"), DeviceChoice::Index(1)));
-    assert!(matches!(DeviceChoice::parse("llvmpipe"), DeviceChoice::Name(_)));
+    assert!(matches!(
+        DeviceChoice::parse("llvmpipe"),
+        DeviceChoice::Name(_)
+    ));
 }
 
 #[test]
@@ -231,7 +344,14 @@ fn timestamps_measure_a_dispatch() {
     let caster = RayCaster::new(&gpu).unwrap();
     let rays = random_rays(&mesh, 256, 5);
     let rb = Buffer::from_slice(&gpu, "rays", vk::BufferUsageFlags::STORAGE_BUFFER, &rays).unwrap();
-    let hb = Buffer::new(&gpu, "hits", 256 * 16, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuOnly).unwrap();
+    let hb = Buffer::new(
+        &gpu,
+        "hits",
+        256 * 16,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        MemoryLocation::GpuOnly,
+    )
+    .unwrap();
     let mut timer = Timer::new(&gpu, 2).unwrap();
     gpu.submit(|cmd| {
         let s = timer.begin(cmd, "cast").unwrap();

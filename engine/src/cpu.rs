@@ -44,7 +44,11 @@ pub fn closest_hit(mesh: &Mesh, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> Optio
         let [a, b, c] = tri.map(|v| Vec3::from(mesh.positions[v as usize]).as_dvec3());
         if let Some((t, u, v)) = ray_triangle(o, d, a, b, c) {
             if t >= tmin as f64 && t <= tmax as f64 && best.is_none_or(|h| (t as f32) < h.t) {
-                best = Some(CpuHit { t: t as f32, tri: i as u32, bary: [u as f32, v as f32] });
+                best = Some(CpuHit {
+                    t: t as f32,
+                    tri: i as u32,
+                    bary: [u as f32, v as f32],
+                });
             }
         }
     }
@@ -70,7 +74,11 @@ pub struct CpuGbuffer {
 
 pub fn gbuffer(mesh: &Mesh, cam: &Camera, near: f32, far: f32) -> CpuGbuffer {
     let n = (cam.width * cam.height) as usize;
-    let mut g = CpuGbuffer { depth: vec![0.0; n], normal: vec![[0.0; 3]; n], tri: vec![0; n] };
+    let mut g = CpuGbuffer {
+        depth: vec![0.0; n],
+        normal: vec![[0.0; 3]; n],
+        tri: vec![0; n],
+    };
     let o = cam.center();
     for y in 0..cam.height {
         for x in 0..cam.width {

@@ -33,8 +33,24 @@ impl Gbuffer {
             | vk::ImageUsageFlags::STORAGE
             | vk::ImageUsageFlags::SAMPLED;
         Ok(Gbuffer {
-            pos_depth: Image::new(gpu, "gbuffer pos", POS_DEPTH_FORMAT, width, height, 1, color)?,
-            normal: Image::new(gpu, "gbuffer normal", NORMAL_FORMAT, width, height, 1, color)?,
+            pos_depth: Image::new(
+                gpu,
+                "gbuffer pos",
+                POS_DEPTH_FORMAT,
+                width,
+                height,
+                1,
+                color,
+            )?,
+            normal: Image::new(
+                gpu,
+                "gbuffer normal",
+                NORMAL_FORMAT,
+                width,
+                height,
+                1,
+                color,
+            )?,
             tri: Image::new(gpu, "gbuffer tri", TRI_FORMAT, width, height, 1, color)?,
             depth: Image::new(
                 gpu,
@@ -50,15 +66,22 @@ impl Gbuffer {
         })
     }
 
-    /// Reads the three images back: (pos+depth, normal, triangle id + 1) per pixel.
-    pub fn download(&self) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<u32>)> {
+    /// Reads the three images back.
+    pub fn download(&self) -> Result<GbufferPixels> {
         let l = vk::ImageLayout::GENERAL;
-        Ok((
-            bytemuck::pod_collect_to_vec(&self.pos_depth.download(l)?),
-            bytemuck::pod_collect_to_vec(&self.normal.download(l)?),
-            bytemuck::pod_collect_to_vec(&self.tri.download(l)?),
-        ))
+        Ok(GbufferPixels {
+            pos_depth: bytemuck::pod_collect_to_vec(&self.pos_depth.download(l)?),
+            normal: bytemuck::pod_collect_to_vec(&self.normal.download(l)?),
+            tri: bytemuck::pod_collect_to_vec(&self.tri.download(l)?),
+        })
     }
+}
+
+/// A G-buffer on the host, row-major.
+pub struct GbufferPixels {
+    pub pos_depth: Vec<[f32; 4]>,
+    pub normal: Vec<[f32; 4]>,
+    pub tri: Vec<u32>,
 }
 
 pub struct GbufferPass {
@@ -96,7 +119,14 @@ impl GbufferPass {
         let d = &gpu.device;
         let color = vk::ImageAspectFlags::COLOR;
         for img in [&out.pos_depth, &out.normal, &out.tri] {
-            image_barrier(gpu, cmd, img.raw, color, vk::ImageLayout::UNDEFINED, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL);
+            image_barrier(
+                gpu,
+                cmd,
+                img.raw,
+                color,
+                vk::ImageLayout::UNDEFINED,
+                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+            );
         }
         image_barrier(
             gpu,
@@ -114,20 +144,34 @@ impl GbufferPass {
                 .store_op(vk::AttachmentStoreOp::STORE)
                 .clear_value(c)
         };
-        let zero_f = vk::ClearValue { color: vk::ClearColorValue { float32: [0.0; 4] } };
-        let zero_u = vk::ClearValue { color: vk::ClearColorValue { uint32: [0; 4] } };
-        let colors = [clear(zero_f, &out.pos_depth), clear(zero_f, &out.normal), clear(zero_u, &out.tri)];
+        let zero_f = vk::ClearValue {
+            color: vk::ClearColorValue { float32: [0.0; 4] },
+        };
+        let zero_u = vk::ClearValue {
+            color: vk::ClearColorValue { uint32: [0; 4] },
+        };
+        let colors = [
+            clear(zero_f, &out.pos_depth),
+            clear(zero_f, &out.normal),
+            clear(zero_u, &out.tri),
+        ];
         let depth = vk::RenderingAttachmentInfo::default()
             .image_view(out.depth.view)
             .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
             .load_op(vk::AttachmentLoadOp::CLEAR)
             .store_op(vk::AttachmentStoreOp::DONT_CARE)
             .clear_value(vk::ClearValue {
-                depth_stencil: vk::ClearDepthStencilValue { depth: 1.0, stencil: 0 },
+                depth_stencil: vk::ClearDepthStencilValue {
+                    depth: 1.0,
+                    stencil: 0,
+                },
             });
         let area = vk::Rect2D {
             offset: vk::Offset2D::default(),
-            extent: vk::Extent2D { width: out.width, height: out.height },
+            extent: vk::Extent2D {
+                width: out.width,
+                height: out.height,
+            },
         };
         let push = cam.to_gpu(near, far);
         unsafe {
@@ -141,7 +185,10 @@ impl GbufferPass {
             );
             self.pipeline.bind(
                 cmd,
-                &[(0, Bind::Buffer(&mesh.positions)), (1, Bind::Buffer(&mesh.indices))],
+                &[
+                    (0, Bind::Buffer(&mesh.positions)),
+                    (1, Bind::Buffer(&mesh.indices)),
+                ],
                 bytes_of(&push),
             )?;
             d.cmd_set_viewport(
@@ -161,7 +208,14 @@ impl GbufferPass {
             d.cmd_end_rendering(cmd);
         }
         for img in [&out.pos_depth, &out.normal, &out.tri] {
-            image_barrier(gpu, cmd, img.raw, color, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::ImageLayout::GENERAL);
+            image_barrier(
+                gpu,
+                cmd,
+                img.raw,
+                color,
+                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+                vk::ImageLayout::GENERAL,
+            );
         }
         Ok(())
     }

@@ -38,7 +38,9 @@ pub struct RayCaster {
 
 impl RayCaster {
     pub fn new(gpu: &Arc<Gpu>) -> Result<RayCaster> {
-        Ok(RayCaster { pipeline: Pipeline::compute(gpu, "trace/rays.comp")? })
+        Ok(RayCaster {
+            pipeline: Pipeline::compute(gpu, "trace/rays.comp")?,
+        })
     }
 
     /// Records the cast of `count` rays from `rays` into `hits`.
@@ -51,10 +53,17 @@ impl RayCaster {
         count: u32,
         occlusion: bool,
     ) -> Result<()> {
-        let push = Push { count, occlusion: occlusion as u32 };
+        let push = Push {
+            count,
+            occlusion: occlusion as u32,
+        };
         self.pipeline.dispatch(
             cmd,
-            &[(0, Bind::Accel(scene.tlas.raw)), (1, Bind::Buffer(rays)), (2, Bind::Buffer(hits))],
+            &[
+                (0, Bind::Accel(scene.tlas.raw)),
+                (1, Bind::Buffer(rays)),
+                (2, Bind::Buffer(hits)),
+            ],
             bytes_of(&push),
             (count, 1, 1),
         )

@@ -13,14 +13,21 @@ pub fn gpu() -> Arc<Gpu> {
     if !validation {
         eprintln!("note: VK_LAYER_KHRONOS_validation not installed; running without validation");
     }
-    Gpu::new(&GpuOptions { device: DeviceChoice::from_env(), validation })
-        .unwrap_or_else(|e| panic!("cannot open a Vulkan device: {e}"))
+    Gpu::new(&GpuOptions {
+        device: DeviceChoice::from_env(),
+        validation,
+    })
+    .unwrap_or_else(|e| panic!("cannot open a Vulkan device: {e}"))
 }
 
 /// Fails the test if the validation layer reported any error on `gpu`.
 pub fn assert_no_validation_errors(gpu: &Gpu) {
     unsafe { gpu.device.device_wait_idle().expect("device idle") };
-    assert_eq!(gpu.validation_errors(), 0, "validation errors were reported (see stderr)");
+    assert_eq!(
+        gpu.validation_errors(),
+        0,
+        "validation errors were reported (see stderr)"
+    );
 }
 
 pub fn tempdir(name: &str) -> std::path::PathBuf {

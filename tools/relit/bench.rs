@@ -31,7 +31,12 @@ pub enum BenchCmd {
 
 pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
     match cmd {
-        BenchCmd::Rays { mesh, rays, repeats, json } => rays_bench(mesh.as_ref(), *rays, *repeats, json.as_ref(), opts),
+        BenchCmd::Rays {
+            mesh,
+            rays,
+            repeats,
+            json,
+        } => rays_bench(mesh.as_ref(), *rays, *repeats, json.as_ref(), opts),
     }
 }
 
@@ -47,7 +52,13 @@ fn make_rays(mesh: &Mesh, n: u32, occlusion: bool, seed: u64) -> Vec<Ray> {
     let mut rng = synth::Rng::new(seed);
     (0..n)
         .map(|_| {
-            let o = lo + (hi - lo) * Vec3::new(rng.range(0.1, 0.9), rng.range(0.1, 0.9), rng.range(0.1, 0.9));
+            let o = lo
+                + (hi - lo)
+                    * Vec3::new(
+                        rng.range(0.1, 0.9),
+                        rng.range(0.1, 0.9),
+                        rng.range(0.1, 0.9),
+                    );
             let z = rng.range(-1.0, 1.0);
             let phi = rng.range(0.0, std::f32::consts::TAU);
             let r = (1.0 - z * z).max(0.0).sqrt();
@@ -71,7 +82,10 @@ fn rays_bench(
 ) -> Result<()> {
     let (mesh, name) = match mesh_path {
         Some(p) => (Mesh::load(p)?, p.display().to_string()),
-        None => (synth::room(91).0, "procedural room (subdivision 91)".to_string()),
+        None => (
+            synth::room(91).0,
+            "procedural room (subdivision 91)".to_string(),
+        ),
     };
     let gpu = crate::open_gpu(opts)?;
     println!("device: {}", gpu.caps.name);
@@ -104,7 +118,11 @@ fn rays_bench(
             gpu.submit(|cmd| {
                 err = timer
                     .begin(cmd, mode)
-                    .and_then(|s| caster.record(cmd, &scene, &rb, &hits, n, occlusion).map(|_| s))
+                    .and_then(|s| {
+                        caster
+                            .record(cmd, &scene, &rb, &hits, n, occlusion)
+                            .map(|_| s)
+                    })
                     .map(|s| timer.end(cmd, s));
             })?;
             err?;
@@ -113,7 +131,11 @@ fn rays_bench(
         let ms = median(times);
         let hit_frac = {
             let h: Vec<Hit> = hits.download_vec()?;
-            h.iter().take(n as usize).filter(|h| h.tri != u32::MAX).count() as f64 / n as f64
+            h.iter()
+                .take(n as usize)
+                .filter(|h| h.tri != u32::MAX)
+                .count() as f64
+                / n as f64
         };
         let rate = n as f64 / (ms * 1e-3);
         println!(

@@ -11,7 +11,11 @@ use relit_engine::gpu::{self, DeviceChoice, Gpu, GpuOptions};
 use relit_engine::scene::{self, Scene, SceneFormat};
 
 #[derive(Parser)]
-#[command(name = "relit", version, about = "Free-viewpoint indoor neural relighting on Vulkan")]
+#[command(
+    name = "relit",
+    version,
+    about = "Free-viewpoint indoor neural relighting on Vulkan"
+)]
 struct Cli {
     /// Vulkan device: an index or part of its name (default: RELIT_DEVICE, else the best one).
     #[arg(long, global = true, env = "RELIT_DEVICE")]
@@ -71,11 +75,20 @@ enum SceneCmd {
 }
 
 pub fn parse_res(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once('x').ok_or_else(|| format!("\"{s}\": expected WxH, e.g. 256x192"))?;
-    let w: u32 = w.parse().map_err(|_| format!("\"{s}\": width is not a number"))?;
-    let h: u32 = h.parse().map_err(|_| format!("\"{s}\": height is not a number"))?;
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| format!("\"{s}\": expected WxH, e.g. 256x192"))?;
+    let w: u32 = w
+        .parse()
+        .map_err(|_| format!("\"{s}\": width is not a number"))?;
+    let h: u32 = h
+        .parse()
+        .map_err(|_| format!("\"{s}\": height is not a number"))?;
     if w == 0 || h == 0 || w > scene::MAX_IMAGE_DIM || h > scene::MAX_IMAGE_DIM {
-        return Err(format!("\"{s}\": each side must be 1..={}", scene::MAX_IMAGE_DIM));
+        return Err(format!(
+            "\"{s}\": each side must be 1..={}",
+            scene::MAX_IMAGE_DIM
+        ));
     }
     Ok((w, h))
 }
@@ -119,7 +132,10 @@ fn info(opts: &GpuOptions) -> Result<()> {
             }
         );
     }
-    println!("validation layer installed: {}", yes(gpu::validation_layer_available(&entry)));
+    println!(
+        "validation layer installed: {}",
+        yes(gpu::validation_layer_available(&entry))
+    );
     let g = open_gpu(opts)?;
     let c = &g.caps;
     let v = c.api_version;
@@ -137,47 +153,94 @@ fn info(opts: &GpuOptions) -> Result<()> {
         println!("  {name:<34} {}", yes(*ok));
     }
     println!("optional features:");
-    println!("  {:<34} {}", "cooperative matrix", yes(!c.coop_matrix.is_empty()));
+    println!(
+        "  {:<34} {}",
+        "cooperative matrix",
+        yes(!c.coop_matrix.is_empty())
+    );
     for s in &c.coop_matrix {
         println!(
             "    {}x{}x{} A={:?} B={:?} C={:?} result={:?} scope={:?}",
             s.m, s.n, s.k, s.a, s.b, s.c, s.result, s.scope
         );
     }
-    println!("  {:<34} {}", "BC texture compression", yes(c.bc_compression));
-    println!("  {:<34} {}", "BC6H sampled with linear filter", yes(c.bc6h_sampled_linear));
+    println!(
+        "  {:<34} {}",
+        "BC texture compression",
+        yes(c.bc_compression)
+    );
+    println!(
+        "  {:<34} {}",
+        "BC6H sampled with linear filter",
+        yes(c.bc6h_sampled_linear)
+    );
     println!("network path: {}", g.network_path());
     println!("limits:");
-    println!("  maxStorageBufferRange              {} MiB", c.max_storage_buffer_range >> 20);
-    println!("  maxImageDimension2D                {}", c.max_image_dimension_2d);
-    println!("  maxImageArrayLayers                {}", c.max_image_array_layers);
-    println!("  maxPushConstantsSize               {}", c.max_push_constants_size);
-    println!("  maxComputeWorkGroupInvocations     {}", c.max_compute_workgroup_invocations);
-    println!("  maxComputeSharedMemorySize         {} KiB", c.max_compute_shared_memory >> 10);
+    println!(
+        "  maxStorageBufferRange              {} MiB",
+        c.max_storage_buffer_range >> 20
+    );
+    println!(
+        "  maxImageDimension2D                {}",
+        c.max_image_dimension_2d
+    );
+    println!(
+        "  maxImageArrayLayers                {}",
+        c.max_image_array_layers
+    );
+    println!(
+        "  maxPushConstantsSize               {}",
+        c.max_push_constants_size
+    );
+    println!(
+        "  maxComputeWorkGroupInvocations     {}",
+        c.max_compute_workgroup_invocations
+    );
+    println!(
+        "  maxComputeSharedMemorySize         {} KiB",
+        c.max_compute_shared_memory >> 10
+    );
     println!("  subgroupSize                       {}", c.subgroup_size);
-    println!("  timestampPeriod                    {} ns ({} valid bits)", c.timestamp_period_ns, c.timestamp_valid_bits);
-    println!("  maxPrimitiveCount (BLAS)           {}", c.max_primitive_count);
-    println!("  memory types                       {}", c.memory_types.len());
+    println!(
+        "  timestampPeriod                    {} ns ({} valid bits)",
+        c.timestamp_period_ns, c.timestamp_valid_bits
+    );
+    println!(
+        "  maxPrimitiveCount (BLAS)           {}",
+        c.max_primitive_count
+    );
+    println!(
+        "  memory types                       {}",
+        c.memory_types.len()
+    );
     for (flags, heap) in &c.memory_types {
         println!("    heap {heap}: {flags:?}");
     }
     Ok(())
 }
 
-fn scene_check(dir: &PathBuf, quick: bool) -> Result<()> {
+fn scene_check(dir: &std::path::Path, quick: bool) -> Result<()> {
     let s = Scene::load(dir)?;
     if !quick {
         s.check_images()?;
     }
     let (lo, hi) = s.mesh.bounds();
-    let mut sizes: Vec<(u32, u32)> = s.views.iter().map(|v| (v.camera.width, v.camera.height)).collect();
+    let mut sizes: Vec<(u32, u32)> = s
+        .views
+        .iter()
+        .map(|v| (v.camera.width, v.camera.height))
+        .collect();
     sizes.sort();
     sizes.dedup();
     println!("scene: {} ({})", s.root.display(), s.format);
     println!("views: {}", s.views.len());
     println!(
         "resolution: {}",
-        sizes.iter().map(|(w, h)| format!("{w}x{h}")).collect::<Vec<_>>().join(", ")
+        sizes
+            .iter()
+            .map(|(w, h)| format!("{w}x{h}"))
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     println!(
         "mesh: {} ({} vertices, {} triangles)",
@@ -212,11 +275,18 @@ fn scene_check(dir: &PathBuf, quick: bool) -> Result<()> {
     }
     println!("presets: {}", s.presets.len());
     for p in &s.presets {
-        println!("  {}: dim {}, intensities {:?}", p.name, p.dim, p.intensities);
+        println!(
+            "  {}: dim {}, intensities {:?}",
+            p.name, p.dim, p.intensities
+        );
     }
     println!(
         "images: {}",
-        if quick { "headers not decoded (--quick)" } else { "all decoded, sizes match cameras, values finite" }
+        if quick {
+            "headers not decoded (--quick)"
+        } else {
+            "all decoded, sizes match cameras, values finite"
+        }
     );
     Ok(())
 }
@@ -226,8 +296,19 @@ fn main() {
     let opts = gpu_options(&cli);
     let res = match &cli.cmd {
         Cmd::Info => info(&opts),
-        Cmd::Scene { cmd: SceneCmd::Check { dir, quick } } => scene_check(dir, *quick),
-        Cmd::Scene { cmd: SceneCmd::Synth { dir, format, views, res, seed } } => {
+        Cmd::Scene {
+            cmd: SceneCmd::Check { dir, quick },
+        } => scene_check(dir, *quick),
+        Cmd::Scene {
+            cmd:
+                SceneCmd::Synth {
+                    dir,
+                    format,
+                    views,
+                    res,
+                    seed,
+                },
+        } => {
             let format = match format {
                 FormatArg::Relit => SceneFormat::Relit,
                 FormatArg::Colmap => SceneFormat::Colmap,
@@ -241,7 +322,13 @@ fn main() {
                 ..Default::default()
             };
             scene::synth::write_room(dir, format, &o)
-                .map(|s| println!("wrote {} views ({format}) to {}", s.views.len(), dir.display()))
+                .map(|s| {
+                    println!(
+                        "wrote {} views ({format}) to {}",
+                        s.views.len(),
+                        dir.display()
+                    )
+                })
                 .map_err(Into::into)
         }
         Cmd::Bench { cmd } => bench::run(cmd, &opts),

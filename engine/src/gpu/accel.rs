@@ -18,7 +18,11 @@ pub struct AccelStruct {
 
 impl Drop for AccelStruct {
     fn drop(&mut self) {
-        unsafe { self.gpu.accel.destroy_acceleration_structure(self.raw, None) };
+        unsafe {
+            self.gpu
+                .accel
+                .destroy_acceleration_structure(self.raw, None)
+        };
     }
 }
 
@@ -91,7 +95,8 @@ fn build(
         .scratch_data(vk::DeviceOrHostAddressKHR {
             device_address: scratch.address.div_ceil(align) * align,
         });
-    let range = [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(primitive_count)];
+    let range =
+        [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(primitive_count)];
     let ranges: [&[vk::AccelerationStructureBuildRangeInfoKHR]; 1] = [&range];
     let built = gpu.submit(|cmd| unsafe {
         gpu.accel
@@ -107,7 +112,12 @@ fn build(
             &vk::AccelerationStructureDeviceAddressInfoKHR::default().acceleration_structure(raw),
         )
     };
-    Ok(AccelStruct { gpu: gpu.clone(), raw, address, _storage: storage })
+    Ok(AccelStruct {
+        gpu: gpu.clone(),
+        raw,
+        address,
+        _storage: storage,
+    })
 }
 
 impl RayScene {
@@ -116,7 +126,9 @@ impl RayScene {
     /// are indices into `indices / 3`.
     pub fn new(gpu: &Arc<Gpu>, positions: &[[f32; 3]], indices: &[[u32; 3]]) -> Result<RayScene> {
         if indices.is_empty() {
-            return Err(Error::Other("cannot build an acceleration structure of an empty mesh".into()));
+            return Err(Error::Other(
+                "cannot build an acceleration structure of an empty mesh".into(),
+            ));
         }
         if indices.len() as u64 > gpu.caps.max_primitive_count {
             return Err(Error::Device(format!(
@@ -129,25 +141,19 @@ impl RayScene {
         let input = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
             | vk::BufferUsageFlags::STORAGE_BUFFER;
-        let pos = Buffer::from_slice(
-            gpu,
-            "mesh positions",
-            input,
-            positions,
-        )?;
-        let idx = Buffer::from_slice(
-            gpu,
-            "mesh indices",
-            input,
-            indices,
-        )?;
+        let pos = Buffer::from_slice(gpu, "mesh positions", input, positions)?;
+        let idx = Buffer::from_slice(gpu, "mesh indices", input, indices)?;
         let tris = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
             .vertex_format(vk::Format::R32G32B32_SFLOAT)
-            .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: pos.address })
+            .vertex_data(vk::DeviceOrHostAddressConstKHR {
+                device_address: pos.address,
+            })
             .vertex_stride(12)
             .max_vertex(positions.len().saturating_sub(1) as u32)
             .index_type(vk::IndexType::UINT32)
-            .index_data(vk::DeviceOrHostAddressConstKHR { device_address: idx.address });
+            .index_data(vk::DeviceOrHostAddressConstKHR {
+                device_address: idx.address,
+            });
         let geom = vk::AccelerationStructureGeometryKHR::default()
             .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
             .geometry(vk::AccelerationStructureGeometryDataKHR { triangles: tris })
@@ -190,7 +196,9 @@ impl RayScene {
         inst_buf.upload(bytes)?;
         let inst = vk::AccelerationStructureGeometryInstancesDataKHR::default()
             .array_of_pointers(false)
-            .data(vk::DeviceOrHostAddressConstKHR { device_address: inst_buf.address });
+            .data(vk::DeviceOrHostAddressConstKHR {
+                device_address: inst_buf.address,
+            });
         let geom = vk::AccelerationStructureGeometryKHR::default()
             .geometry_type(vk::GeometryTypeKHR::INSTANCES)
             .geometry(vk::AccelerationStructureGeometryDataKHR { instances: inst });

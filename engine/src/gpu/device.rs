@@ -244,35 +244,51 @@ fn query_caps(
         let qf = instance.get_physical_device_queue_family_properties(pd);
         let ts_bits = qf
             .iter()
-            .find(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS))
+            .find(|q| {
+                q.queue_flags
+                    .contains(vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS)
+            })
             .map(|q| q.timestamp_valid_bits)
             .unwrap_or(0);
 
         let required = vec![
             ("Vulkan 1.3", props.api_version >= vk::API_VERSION_1_3),
-            ("VK_KHR_acceleration_structure", has_as && fas.acceleration_structure == vk::TRUE),
-            ("VK_KHR_ray_query (ray query)", has_rq && frq.ray_query == vk::TRUE),
+            (
+                "VK_KHR_acceleration_structure",
+                has_as && fas.acceleration_structure == vk::TRUE,
+            ),
+            (
+                "VK_KHR_ray_query (ray query)",
+                has_rq && frq.ray_query == vk::TRUE,
+            ),
             (
                 "VK_KHR_deferred_host_operations",
                 has_ext(ash::khr::deferred_host_operations::NAME),
             ),
-            ("VK_KHR_push_descriptor", has_ext(ash::khr::push_descriptor::NAME)),
+            (
+                "VK_KHR_push_descriptor",
+                has_ext(ash::khr::push_descriptor::NAME),
+            ),
             ("bufferDeviceAddress", f12.buffer_device_address == vk::TRUE),
-            ("storageBuffer16BitAccess", f11.storage_buffer16_bit_access == vk::TRUE),
+            (
+                "storageBuffer16BitAccess",
+                f11.storage_buffer16_bit_access == vk::TRUE,
+            ),
             ("shaderFloat16", f12.shader_float16 == vk::TRUE),
             ("synchronization2", f13.synchronization2 == vk::TRUE),
             ("dynamicRendering", f13.dynamic_rendering == vk::TRUE),
             ("scalarBlockLayout", f12.scalar_block_layout == vk::TRUE),
             (
                 "graphics+compute queue",
-                qf.iter()
-                    .any(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS)),
+                qf.iter().any(|q| {
+                    q.queue_flags
+                        .contains(vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS)
+                }),
             ),
         ];
 
         let bc_compression = base.texture_compression_bc == vk::TRUE;
-        let fmt = instance
-            .get_physical_device_format_properties(pd, vk::Format::BC6H_UFLOAT_BLOCK);
+        let fmt = instance.get_physical_device_format_properties(pd, vk::Format::BC6H_UFLOAT_BLOCK);
         let bc6h_sampled_linear = bc_compression
             && fmt.optimal_tiling_features.contains(
                 vk::FormatFeatureFlags::SAMPLED_IMAGE
@@ -411,7 +427,10 @@ impl Gpu {
 
         // From here on, failures must tear down what exists: do it in one place.
         let fail = |instance: &ash::Instance,
-                    debug: &Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>| unsafe {
+                    debug: &Option<(
+            ash::ext::debug_utils::Instance,
+            vk::DebugUtilsMessengerEXT,
+        )>| unsafe {
             if let Some((du, m)) = debug {
                 du.destroy_debug_utils_messenger(*m, None);
             }
@@ -451,7 +470,10 @@ impl Gpu {
                         .ok_or_else(|| {
                             Error::Device(format!(
                                 "no device name contains \"{n}\"; present: {}",
-                                all.iter().map(|(_, c)| c.name.clone()).collect::<Vec<_>>().join(", ")
+                                all.iter()
+                                    .map(|(_, c)| c.name.clone())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
                             ))
                         })?,
                 ),
@@ -471,7 +493,10 @@ impl Gpu {
                 None => Err(Error::Device(format!(
                     "no Vulkan device has what Relit needs ({}); on Debian 12 install \
                      mesa-vulkan-drivers >= 24.1 from bookworm-backports (tools/setup.sh)",
-                    all.iter().map(|(_, c)| describe(c)).collect::<Vec<_>>().join("; ")
+                    all.iter()
+                        .map(|(_, c)| describe(c))
+                        .collect::<Vec<_>>()
+                        .join("; ")
                 ))),
             }
         })();
@@ -486,7 +511,10 @@ impl Gpu {
         let qf = unsafe { instance.get_physical_device_queue_family_properties(pdevice) };
         let queue_family = qf
             .iter()
-            .position(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS))
+            .position(|q| {
+                q.queue_flags
+                    .contains(vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS)
+            })
             .unwrap_or(0) as u32;
 
         let mut ext_names: Vec<*const std::ffi::c_char> =
@@ -494,7 +522,8 @@ impl Gpu {
         if !caps.coop_matrix.is_empty() {
             ext_names.push(ash::khr::cooperative_matrix::NAME.as_ptr());
         }
-        let mut f11 = vk::PhysicalDeviceVulkan11Features::default().storage_buffer16_bit_access(true);
+        let mut f11 =
+            vk::PhysicalDeviceVulkan11Features::default().storage_buffer16_bit_access(true);
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default()
             .buffer_device_address(true)
             .shader_float16(true)
@@ -503,10 +532,11 @@ impl Gpu {
         let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
             .synchronization2(true)
             .dynamic_rendering(true);
-        let mut fas =
-            vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
+        let mut fas = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default()
+            .acceleration_structure(true);
         let mut frq = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
-        let mut fcm = vk::PhysicalDeviceCooperativeMatrixFeaturesKHR::default().cooperative_matrix(true);
+        let mut fcm =
+            vk::PhysicalDeviceCooperativeMatrixFeaturesKHR::default().cooperative_matrix(true);
         let base = vk::PhysicalDeviceFeatures::default()
             .texture_compression_bc(caps.bc_compression)
             .shader_int64(false);
@@ -530,7 +560,10 @@ impl Gpu {
             Ok(d) => d,
             Err(e) => {
                 fail(&instance, &debug);
-                return Err(Error::Vk { what: "create device", result: e });
+                return Err(Error::Vk {
+                    what: "create device",
+                    result: e,
+                });
             }
         };
         let queue = unsafe { device.get_device_queue(queue_family, 0) };

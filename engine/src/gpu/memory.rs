@@ -64,7 +64,9 @@ impl Gpu {
             .allocator
             .lock()
             .map_err(|_| Error::Other("allocator lock poisoned".into()))?;
-        let alloc = guard.as_mut().ok_or_else(|| Error::Other("allocator gone".into()))?;
+        let alloc = guard
+            .as_mut()
+            .ok_or_else(|| Error::Other("allocator gone".into()))?;
         Ok(alloc.allocate(&AllocationCreateDesc {
             name,
             requirements: req,
@@ -171,7 +173,10 @@ impl Buffer {
         if let Err(e) = unsafe { d.bind_buffer_memory(raw, alloc.memory(), alloc.offset()) } {
             unsafe { d.destroy_buffer(raw, None) };
             gpu.free(alloc);
-            return Err(Error::Vk { what: "bind buffer memory", result: e });
+            return Err(Error::Vk {
+                what: "bind buffer memory",
+                result: e,
+            });
         }
         let address = if usage.contains(vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS) {
             unsafe {
@@ -180,7 +185,13 @@ impl Buffer {
         } else {
             0
         };
-        Ok(Buffer { gpu: gpu.clone(), raw, size, address, alloc: Some(alloc) })
+        Ok(Buffer {
+            gpu: gpu.clone(),
+            raw,
+            size,
+            address,
+            alloc: Some(alloc),
+        })
     }
 
     /// A device-local storage buffer filled with `data`.
@@ -191,7 +202,13 @@ impl Buffer {
         data: &[T],
     ) -> Result<Buffer> {
         let bytes: &[u8] = bytemuck::cast_slice(data);
-        let b = Buffer::new(gpu, name, bytes.len() as u64, usage, MemoryLocation::GpuOnly)?;
+        let b = Buffer::new(
+            gpu,
+            name,
+            bytes.len() as u64,
+            usage,
+            MemoryLocation::GpuOnly,
+        )?;
         b.upload(bytes)?;
         Ok(b)
     }
@@ -201,7 +218,8 @@ impl Buffer {
         let a = self.alloc.as_ref().expect("buffer allocation");
         !self.gpu.force_staging()
             && a.mapped_ptr().is_some()
-            && a.memory_properties().contains(vk::MemoryPropertyFlags::HOST_COHERENT)
+            && a.memory_properties()
+                .contains(vk::MemoryPropertyFlags::HOST_COHERENT)
     }
 
     pub fn upload(&self, bytes: &[u8]) -> Result<()> {
@@ -222,7 +240,9 @@ impl Buffer {
         staging.write(bytes);
         self.gpu.submit(|cmd| unsafe {
             let region = [vk::BufferCopy::default().size(bytes.len() as u64)];
-            self.gpu.device.cmd_copy_buffer(cmd, staging.raw, self.raw, &region);
+            self.gpu
+                .device
+                .cmd_copy_buffer(cmd, staging.raw, self.raw, &region);
         })
     }
 
@@ -237,14 +257,20 @@ impl Buffer {
             let p = a.mapped_ptr().expect("mapped").as_ptr() as *const u8;
             let mut out = vec![0u8; len as usize];
             unsafe {
-                std::ptr::copy_nonoverlapping(p.add(offset as usize), out.as_mut_ptr(), len as usize)
+                std::ptr::copy_nonoverlapping(
+                    p.add(offset as usize),
+                    out.as_mut_ptr(),
+                    len as usize,
+                )
             };
             return Ok(out);
         }
         let staging = Staging::new(&self.gpu, len, MemoryLocation::GpuToCpu)?;
         self.gpu.submit(|cmd| unsafe {
             let region = [vk::BufferCopy::default().src_offset(offset).size(len)];
-            self.gpu.device.cmd_copy_buffer(cmd, self.raw, staging.raw, &region);
+            self.gpu
+                .device
+                .cmd_copy_buffer(cmd, self.raw, staging.raw, &region);
         })?;
         Ok(staging.read(len as usize))
     }
@@ -252,12 +278,16 @@ impl Buffer {
     pub fn download_vec<T: bytemuck::Pod>(&self) -> Result<Vec<T>> {
         let bytes = self.download()?;
         let n = bytes.len() / std::mem::size_of::<T>();
-        Ok(bytemuck::pod_collect_to_vec(&bytes[..n * std::mem::size_of::<T>()]))
+        Ok(bytemuck::pod_collect_to_vec(
+            &bytes[..n * std::mem::size_of::<T>()],
+        ))
     }
 
     pub fn fill_zero(&self) -> Result<()> {
         self.gpu.submit(|cmd| unsafe {
-            self.gpu.device.cmd_fill_buffer(cmd, self.raw, 0, vk::WHOLE_SIZE, 0)
+            self.gpu
+                .device
+                .cmd_fill_buffer(cmd, self.raw, 0, vk::WHOLE_SIZE, 0)
         })
     }
 }
@@ -283,9 +313,9 @@ impl Staging {
         let d = &gpu.device;
         let raw = unsafe {
             d.create_buffer(
-                &vk::BufferCreateInfo::default().size(size.max(4)).usage(
-                    vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST,
-                ),
+                &vk::BufferCreateInfo::default()
+                    .size(size.max(4))
+                    .usage(vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST),
                 None,
             )
         }
@@ -301,20 +331,33 @@ impl Staging {
         if let Err(e) = unsafe { d.bind_buffer_memory(raw, alloc.memory(), alloc.offset()) } {
             unsafe { d.destroy_buffer(raw, None) };
             gpu.free(alloc);
-            return Err(Error::Vk { what: "bind staging memory", result: e });
+            return Err(Error::Vk {
+                what: "bind staging memory",
+                result: e,
+            });
         }
-        Ok(Staging { gpu: gpu.clone(), raw, alloc: Some(alloc) })
+        Ok(Staging {
+            gpu: gpu.clone(),
+            raw,
+            alloc: Some(alloc),
+        })
     }
 
     fn write(&self, bytes: &[u8]) {
         let a = self.alloc.as_ref().expect("allocation");
-        let p = a.mapped_ptr().expect("staging memory is host-visible").as_ptr() as *mut u8;
+        let p = a
+            .mapped_ptr()
+            .expect("staging memory is host-visible")
+            .as_ptr() as *mut u8;
         unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), p, bytes.len()) };
     }
 
     fn read(&self, len: usize) -> Vec<u8> {
         let a = self.alloc.as_ref().expect("allocation");
-        let p = a.mapped_ptr().expect("staging memory is host-visible").as_ptr() as *const u8;
+        let p = a
+            .mapped_ptr()
+            .expect("staging memory is host-visible")
+            .as_ptr() as *const u8;
         let mut out = vec![0u8; len];
         unsafe { std::ptr::copy_nonoverlapping(p, out.as_mut_ptr(), len) };
         out
@@ -377,7 +420,11 @@ impl Image {
                 &vk::ImageCreateInfo::default()
                     .image_type(vk::ImageType::TYPE_2D)
                     .format(format)
-                    .extent(vk::Extent3D { width, height, depth: 1 })
+                    .extent(vk::Extent3D {
+                        width,
+                        height,
+                        depth: 1,
+                    })
                     .mip_levels(1)
                     .array_layers(layers)
                     .samples(vk::SampleCountFlags::TYPE_1)
@@ -421,7 +468,10 @@ impl Image {
             Err(e) => {
                 unsafe { d.destroy_image(raw, None) };
                 gpu.free(alloc);
-                return Err(Error::Vk { what: "bind image memory / create view", result: e });
+                return Err(Error::Vk {
+                    what: "bind image memory / create view",
+                    result: e,
+                });
             }
         };
         Ok(Image {
@@ -472,7 +522,10 @@ impl Image {
     /// Reads all layers back (tightly packed), the image being in `layout`, which it keeps.
     pub fn download(&self, layout: vk::ImageLayout) -> Result<Vec<u8>> {
         let texel = texel_size(self.format).ok_or_else(|| {
-            Error::Other(format!("readback of {:?} images is not supported", self.format))
+            Error::Other(format!(
+                "readback of {:?} images is not supported",
+                self.format
+            ))
         })? as u64;
         let len = texel * self.width as u64 * self.height as u64 * self.layers as u64;
         let staging = Staging::new(&self.gpu, len, MemoryLocation::GpuToCpu)?;
@@ -512,7 +565,11 @@ impl Image {
                     .aspect_mask(self.aspect)
                     .layer_count(self.layers),
             )
-            .image_extent(vk::Extent3D { width: self.width, height: self.height, depth: 1 })
+            .image_extent(vk::Extent3D {
+                width: self.width,
+                height: self.height,
+                depth: 1,
+            })
     }
 }
 

@@ -71,7 +71,10 @@ pub fn reflect(name: &str) -> Result<Reflected> {
                     )))
                 }
             };
-            out.insert(binding, (vk::DescriptorType::from_raw(info.ty.0 as i32), count));
+            out.insert(
+                binding,
+                (vk::DescriptorType::from_raw(info.ty.0 as i32), count),
+            );
         }
         sets.insert(set, out);
     }
@@ -80,7 +83,11 @@ pub fn reflect(name: &str) -> Result<Reflected> {
         .map_err(err)?
         .map(|p| p.offset + p.size)
         .unwrap_or(0);
-    Ok(Reflected { sets, push_size, workgroup: r.get_compute_group_size() })
+    Ok(Reflected {
+        sets,
+        push_size,
+        workgroup: r.get_compute_group_size(),
+    })
 }
 
 /// A resource bound at one binding of set 0.
@@ -115,18 +122,22 @@ fn make_module(gpu: &Gpu, name: &str) -> Result<vk::ShaderModule> {
     .vk("create shader module")
 }
 
+/// A pipeline layout with its push-descriptor set layout and what it was built from.
+struct Layout {
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    bindings: BTreeMap<u32, (vk::DescriptorType, u32)>,
+    push_size: u32,
+}
+
 /// Merges per-stage reflections into one set-0 layout and push range.
 fn make_layout(
     gpu: &Gpu,
     name: &str,
     parts: &[(Reflected, vk::ShaderStageFlags)],
-) -> Result<(
-    vk::DescriptorSetLayout,
-    vk::PipelineLayout,
-    BTreeMap<u32, (vk::DescriptorType, u32)>,
-    u32,
-)> {
-    let mut bindings: BTreeMap<u32, (vk::DescriptorType, u32, vk::ShaderStageFlags)> = BTreeMap::new();
+) -> Result<Layout> {
+    let mut bindings: BTreeMap<u32, (vk::DescriptorType, u32, vk::ShaderStageFlags)> =
+        BTreeMap::new();
     let mut push_size = 0;
     for (r, stage) in parts {
         for (set, b) in &r.sets {
@@ -136,7 +147,11 @@ fn make_layout(
                 )));
             }
             for (binding, (ty, count)) in b {
-                let e = bindings.entry(*binding).or_insert((*ty, *count, vk::ShaderStageFlags::empty()));
+                let e = bindings.entry(*binding).or_insert((
+                    *ty,
+                    *count,
+                    vk::ShaderStageFlags::empty(),
+                ));
                 if e.0 != *ty {
                     return Err(Error::Other(format!(
                         "{name}: binding {binding} has type {:?} in one stage and {ty:?} in another",
@@ -148,8 +163,9 @@ fn make_layout(
         }
         push_size = push_size.max(r.push_size);
     }
-    let all_stages: vk::ShaderStageFlags =
-        parts.iter().fold(vk::ShaderStageFlags::empty(), |a, (_, s)| a | *s);
+    let all_stages: vk::ShaderStageFlags = parts
+        .iter()
+        .fold(vk::ShaderStageFlags::empty(), |a, (_, s)| a | *s);
     let vk_bindings: Vec<vk::DescriptorSetLayoutBinding> = bindings
         .iter()
         .map(|(b, (ty, count, stages))| {
@@ -183,11 +199,22 @@ fn make_layout(
         Ok(l) => l,
         Err(e) => {
             unsafe { d.destroy_descriptor_set_layout(set_layout, None) };
-            return Err(Error::Vk { what: "create pipeline layout", result: e });
+            return Err(Error::Vk {
+                what: "create pipeline layout",
+                result: e,
+            });
         }
     };
-    let out = bindings.into_iter().map(|(b, (t, c, _))| (b, (t, c))).collect();
-    Ok((set_layout, layout, out, push_size))
+    let bindings = bindings
+        .into_iter()
+        .map(|(b, (t, c, _))| (b, (t, c)))
+        .collect();
+    Ok(Layout {
+        set_layout,
+        layout,
+        bindings,
+        push_size,
+    })
 }
 
 /// Fixed-function state for a graphics pipeline (dynamic rendering, dynamic viewport).
@@ -206,14 +233,20 @@ impl Pipeline {
     pub fn compute(gpu: &Arc<Gpu>, name: &str) -> Result<Pipeline> {
         let r = reflect(name)?;
         let workgroup = r.workgroup.unwrap_or((1, 1, 1));
-        let (set_layout, layout, bindings, push_size) =
-            make_layout(gpu, name, &[(r, vk::ShaderStageFlags::COMPUTE)])?;
+        let Layout {
+            set_layout,
+            layout,
+            bindings,
+            push_size,
+        } = make_layout(gpu, name, &[(r, vk::ShaderStageFlags::COMPUTE)])?;
         let module = make_module(gpu, name)?;
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(module)
             .name(c"main");
-        let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout)];
+        let info = [vk::ComputePipelineCreateInfo::default()
+            .stage(stage)
+            .layout(layout)];
         let res = unsafe {
             gpu.device
                 .create_compute_pipelines(vk::PipelineCache::null(), &info, None)
@@ -226,7 +259,10 @@ impl Pipeline {
                     gpu.device.destroy_pipeline_layout(layout, None);
                     gpu.device.destroy_descriptor_set_layout(set_layout, None);
                 }
-                return Err(Error::Vk { what: "create compute pipeline", result: e });
+                return Err(Error::Vk {
+                    what: "create compute pipeline",
+                    result: e,
+                });
             }
         };
         Ok(Pipeline {
@@ -249,7 +285,12 @@ impl Pipeline {
             (reflect(desc.vert)?, vk::ShaderStageFlags::VERTEX),
             (reflect(desc.frag)?, vk::ShaderStageFlags::FRAGMENT),
         ];
-        let (set_layout, layout, bindings, push_size) = make_layout(gpu, &name, &parts)?;
+        let Layout {
+            set_layout,
+            layout,
+            bindings,
+            push_size,
+        } = make_layout(gpu, &name, &parts)?;
         let vm = make_module(gpu, desc.vert)?;
         let fm = make_module(gpu, desc.frag)?;
         let stages = [
@@ -340,7 +381,10 @@ impl Pipeline {
                     gpu.device.destroy_pipeline_layout(layout, None);
                     gpu.device.destroy_descriptor_set_layout(set_layout, None);
                 }
-                return Err(Error::Vk { what: "create graphics pipeline", result: e });
+                return Err(Error::Vk {
+                    what: "create graphics pipeline",
+                    result: e,
+                });
             }
         };
         Ok(Pipeline {
@@ -362,7 +406,10 @@ impl Pipeline {
     pub fn bind(&self, cmd: vk::CommandBuffer, binds: &[(u32, Bind)], push: &[u8]) -> Result<()> {
         for b in self.bindings.keys() {
             if !binds.iter().any(|(i, _)| i == b) {
-                return Err(Error::Other(format!("{}: binding {b} not given", self.name)));
+                return Err(Error::Other(format!(
+                    "{}: binding {b} not given",
+                    self.name
+                )));
             }
         }
         if push.len() as u32 != self.push_size {
@@ -385,8 +432,14 @@ impl Pipeline {
                 (Bind::Buffer(_), vk::DescriptorType::STORAGE_BUFFER)
                     | (Bind::Buffer(_), vk::DescriptorType::UNIFORM_BUFFER)
                     | (Bind::StorageImage(_), vk::DescriptorType::STORAGE_IMAGE)
-                    | (Bind::Sampled(..), vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-                    | (Bind::Accel(_), vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
+                    | (
+                        Bind::Sampled(..),
+                        vk::DescriptorType::COMBINED_IMAGE_SAMPLER
+                    )
+                    | (
+                        Bind::Accel(_),
+                        vk::DescriptorType::ACCELERATION_STRUCTURE_KHR
+                    )
             );
             if !ok {
                 return Err(Error::Other(format!(
@@ -416,7 +469,9 @@ impl Pipeline {
         }
         let mut as_writes: Vec<vk::WriteDescriptorSetAccelerationStructureKHR> = accels
             .iter()
-            .map(|a| vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(a))
+            .map(|a| {
+                vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(a)
+            })
             .collect();
         let (mut bi, mut ii) = (0, 0);
         let mut as_iter = as_writes.iter_mut();
@@ -446,9 +501,13 @@ impl Pipeline {
             let d = &self.gpu.device;
             d.cmd_bind_pipeline(cmd, self.bind_point, self.raw);
             if !writes.is_empty() {
-                self.gpu
-                    .push_desc
-                    .cmd_push_descriptor_set(cmd, self.bind_point, self.layout, 0, &writes);
+                self.gpu.push_desc.cmd_push_descriptor_set(
+                    cmd,
+                    self.bind_point,
+                    self.layout,
+                    0,
+                    &writes,
+                );
             }
             if !push.is_empty() {
                 d.cmd_push_constants(cmd, self.layout, self.stages, 0, push);
@@ -505,7 +564,10 @@ impl Sampler {
             .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
             .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE);
         let raw = unsafe { gpu.device.create_sampler(&info, None) }.vk("create sampler")?;
-        Ok(Sampler { gpu: gpu.clone(), raw })
+        Ok(Sampler {
+            gpu: gpu.clone(),
+            raw,
+        })
     }
 }
 

@@ -18,7 +18,9 @@ pub struct Timer {
 impl Timer {
     pub fn new(gpu: &Arc<Gpu>, capacity: u32) -> Result<Timer> {
         if gpu.caps.timestamp_valid_bits == 0 {
-            return Err(Error::Device("the queue does not support timestamps".into()));
+            return Err(Error::Device(
+                "the queue does not support timestamps".into(),
+            ));
         }
         let pool = unsafe {
             gpu.device.create_query_pool(
@@ -30,20 +32,32 @@ impl Timer {
         }
         .vk("create query pool")?;
         unsafe { gpu.device.reset_query_pool(pool, 0, capacity * 2) };
-        Ok(Timer { gpu: gpu.clone(), pool, capacity, labels: Vec::new() })
+        Ok(Timer {
+            gpu: gpu.clone(),
+            pool,
+            capacity,
+            labels: Vec::new(),
+        })
     }
 
     /// Clears the labels and the queries (host reset; call outside any recording).
     pub fn reset(&mut self) {
         self.labels.clear();
-        unsafe { self.gpu.device.reset_query_pool(self.pool, 0, self.capacity * 2) };
+        unsafe {
+            self.gpu
+                .device
+                .reset_query_pool(self.pool, 0, self.capacity * 2)
+        };
     }
 
     /// Records the start of span `label`; returns its index for `end`.
     pub fn begin(&mut self, cmd: vk::CommandBuffer, label: &str) -> Result<u32> {
         let i = self.labels.len() as u32;
         if i >= self.capacity {
-            return Err(Error::Other(format!("timer full ({} spans)", self.capacity)));
+            return Err(Error::Other(format!(
+                "timer full ({} spans)",
+                self.capacity
+            )));
         }
         self.labels.push(label.to_string());
         unsafe {
@@ -85,7 +99,11 @@ impl Timer {
         }
         .vk("read timestamps")?;
         let bits = self.gpu.caps.timestamp_valid_bits;
-        let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+        let mask = if bits >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << bits) - 1
+        };
         let period = self.gpu.caps.timestamp_period_ns as f64;
         Ok(self
             .labels

@@ -113,7 +113,10 @@ impl Camera {
     /// Checks the values a loader produced; `what` names the camera in the message.
     pub fn validate(&self) -> Result<(), String> {
         if self.width == 0 || self.height == 0 {
-            return Err(format!("image size {}x{} must be positive", self.width, self.height));
+            return Err(format!(
+                "image size {}x{} must be positive",
+                self.width, self.height
+            ));
         }
         if self.width > crate::scene::MAX_IMAGE_DIM || self.height > crate::scene::MAX_IMAGE_DIM {
             return Err(format!(
@@ -125,18 +128,20 @@ impl Camera {
         }
         for (n, v) in [("fx", self.fx), ("fy", self.fy)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("focal length {n} = {v}; expected a positive finite number"));
+                return Err(format!(
+                    "focal length {n} = {v}; expected a positive finite number"
+                ));
             }
         }
         for (n, v) in [("cx", self.cx), ("cy", self.cy)] {
             if !v.is_finite() {
-                return Err(format!("principal point {n} = {v}; expected a finite number"));
+                return Err(format!(
+                    "principal point {n} = {v}; expected a finite number"
+                ));
             }
         }
         let r = self.rotation;
-        if !r.to_cols_array().iter().all(|v| v.is_finite())
-            || !self.translation.is_finite()
-        {
+        if !r.to_cols_array().iter().all(|v| v.is_finite()) || !self.translation.is_finite() {
             return Err("pose has non-finite values".into());
         }
         let ortho = (r * r.transpose() - Mat3::IDENTITY)

@@ -11,8 +11,12 @@ use glam::{Quat, Vec3};
 use super::{json, Camera, Mesh, Scene, SceneFormat, View};
 use crate::error::{Error, Result};
 
-pub(crate) const MESH_CANDIDATES: &[&str] =
-    &["mesh.ply", "mesh.obj", "meshes/recon.ply", "meshes/recon.obj"];
+pub(crate) const MESH_CANDIDATES: &[&str] = &[
+    "mesh.ply",
+    "mesh.obj",
+    "meshes/recon.ply",
+    "meshes/recon.obj",
+];
 
 pub(crate) fn model_dir(dir: &Path) -> Option<PathBuf> {
     [dir.join("sparse/0"), dir.join("sparse"), dir.to_path_buf()]
@@ -29,10 +33,19 @@ struct Intrinsics {
     cy: f32,
 }
 
-fn num<T: std::str::FromStr>(file: &Path, line: usize, field: &str, tok: Option<&str>) -> Result<T> {
+fn num<T: std::str::FromStr>(
+    file: &Path,
+    line: usize,
+    field: &str,
+    tok: Option<&str>,
+) -> Result<T> {
     let tok = tok.ok_or_else(|| Error::input(file, format!("line {line}: missing {field}")))?;
-    tok.parse::<T>()
-        .map_err(|_| Error::input(file, format!("line {line}: {field} \"{tok}\" is not a valid number")))
+    tok.parse::<T>().map_err(|_| {
+        Error::input(
+            file,
+            format!("line {line}: {field} \"{tok}\" is not a valid number"),
+        )
+    })
 }
 
 fn parse_cameras(file: &Path) -> Result<HashMap<u32, Intrinsics>> {
@@ -52,7 +65,10 @@ fn parse_cameras(file: &Path) -> Result<HashMap<u32, Intrinsics>> {
         let params: Vec<f32> = t
             .map(|p| {
                 p.parse::<f32>().map_err(|_| {
-                    Error::input(file, format!("line {ln}: parameter \"{p}\" is not a number"))
+                    Error::input(
+                        file,
+                        format!("line {ln}: parameter \"{p}\" is not a number"),
+                    )
                 })
             })
             .collect::<Result<_>>()?;
@@ -62,18 +78,35 @@ fn parse_cameras(file: &Path) -> Result<HashMap<u32, Intrinsics>> {
             } else {
                 Err(Error::input(
                     file,
-                    format!("line {ln}: {model} takes {n} parameters, found {}", params.len()),
+                    format!(
+                        "line {ln}: {model} takes {n} parameters, found {}",
+                        params.len()
+                    ),
                 ))
             }
         };
         let k = match model {
             "PINHOLE" => {
                 need(4)?;
-                Intrinsics { width, height, fx: params[0], fy: params[1], cx: params[2], cy: params[3] }
+                Intrinsics {
+                    width,
+                    height,
+                    fx: params[0],
+                    fy: params[1],
+                    cx: params[2],
+                    cy: params[3],
+                }
             }
             "SIMPLE_PINHOLE" => {
                 need(3)?;
-                Intrinsics { width, height, fx: params[0], fy: params[0], cx: params[1], cy: params[2] }
+                Intrinsics {
+                    width,
+                    height,
+                    fx: params[0],
+                    fy: params[0],
+                    cx: params[1],
+                    cy: params[2],
+                }
             }
             other => {
                 return Err(Error::input(
@@ -86,7 +119,10 @@ fn parse_cameras(file: &Path) -> Result<HashMap<u32, Intrinsics>> {
             }
         };
         if cams.insert(id, k).is_some() {
-            return Err(Error::input(file, format!("line {ln}: camera {id} defined twice")));
+            return Err(Error::input(
+                file,
+                format!("line {ln}: camera {id} defined twice"),
+            ));
         }
     }
     Ok(cams)
@@ -127,12 +163,18 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
         let cam_id: u32 = num(&img_file, ln, "CAMERA_ID", t.next())?;
         let name: Vec<&str> = t.collect();
         if name.is_empty() {
-            return Err(Error::input(&img_file, format!("line {ln}: missing image NAME")));
+            return Err(Error::input(
+                &img_file,
+                format!("line {ln}: missing image NAME"),
+            ));
         }
         let name = name.join(" ");
         let quat = Quat::from_xyzw(q[1], q[2], q[3], q[0]);
-        if !(quat.length() > 1e-6) || !quat.is_finite() {
-            return Err(Error::input(&img_file, format!("line {ln}: quaternion {q:?} is not a rotation")));
+        if !quat.is_finite() || quat.length() <= 1e-6 {
+            return Err(Error::input(
+                &img_file,
+                format!("line {ln}: quaternion {q:?} is not a rotation"),
+            ));
         }
         let k_ = cams.get(&cam_id).ok_or_else(|| {
             Error::input(
@@ -182,7 +224,17 @@ pub fn write(dir: &Path, scene: &Scene) -> Result<()> {
     );
     for (i, v) in scene.views.iter().enumerate() {
         let c = &v.camera;
-        let _ = writeln!(cams, "{} PINHOLE {} {} {} {} {} {}", i + 1, c.width, c.height, c.fx, c.fy, c.cx, c.cy);
+        let _ = writeln!(
+            cams,
+            "{} PINHOLE {} {} {} {} {} {}",
+            i + 1,
+            c.width,
+            c.height,
+            c.fx,
+            c.fy,
+            c.cx,
+            c.cy
+        );
         let q = Quat::from_mat3(&c.rotation);
         let t = c.translation;
         let _ = writeln!(

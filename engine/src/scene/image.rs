@@ -17,7 +17,11 @@ pub struct RgbImage {
 
 impl RgbImage {
     pub fn new(width: u32, height: u32) -> RgbImage {
-        RgbImage { width, height, pixels: vec![[0.0; 3]; (width * height) as usize] }
+        RgbImage {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; (width * height) as usize],
+        }
     }
     pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
         self.pixels[(y * self.width + x) as usize]
@@ -56,6 +60,9 @@ fn check_dims(path: &Path, w: u64, h: u64) -> Result<()> {
 
 /// Width and height from the header only.
 pub fn image_size(path: &Path) -> Result<(u32, u32)> {
+    if !path.exists() {
+        return Err(Error::input(path, "image file does not exist"));
+    }
     if is_exr(path) {
         let meta = exr::meta::MetaData::read_from_file(path, false)
             .map_err(|e| Error::input(path, format!("unreadable EXR header: {e}")))?;
@@ -87,9 +94,6 @@ fn is_exr(path: &Path) -> bool {
 
 /// Loads an image as linear RGB. Refuses non-finite or negative-infinite pixels, naming the first.
 pub fn load_rgb(path: &Path) -> Result<RgbImage> {
-    if !path.exists() {
-        return Err(Error::input(path, "image file does not exist"));
-    }
     let (w, h) = image_size(path)?;
     let img = if is_exr(path) {
         use exr::prelude::*;
@@ -105,7 +109,12 @@ pub fn load_rgb(path: &Path) -> Result<RgbImage> {
             .first_valid_layer()
             .all_attributes()
             .from_file(path)
-            .map_err(|e| crate::Error::input(path, format!("cannot decode EXR: {e}")))?;
+            .map_err(|e| {
+                crate::Error::input(
+                    path,
+                    format!("cannot decode EXR (truncated or corrupt): {e}"),
+                )
+            })?;
         image.layer_data.channel_data.pixels
     } else {
         let mut reader = image::ImageReader::open(path)
@@ -125,14 +134,24 @@ pub fn load_rgb(path: &Path) -> Result<RgbImage> {
             height: decoded.height(),
             pixels: decoded
                 .pixels()
-                .map(|p| [srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2])])
+                .map(|p| {
+                    [
+                        srgb_to_linear(p[0]),
+                        srgb_to_linear(p[1]),
+                        srgb_to_linear(p[2]),
+                    ]
+                })
                 .collect(),
         }
     };
     if (img.width, img.height) != (w, h) {
         return Err(Error::input(path, "decoded size differs from the header"));
     }
-    if let Some(i) = img.pixels.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+    if let Some(i) = img
+        .pixels
+        .iter()
+        .position(|p| !p.iter().all(|v| v.is_finite()))
+    {
         return Err(Error::input(
             path,
             format!(
@@ -152,7 +171,11 @@ pub fn write_exr(path: &Path, img: &RgbImage) -> Result<()> {
     let w = img.width as usize;
     let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
         let p = img.pixels[pos.y() * w + pos.x()];
-        (f16::from_f32(p[0]), f16::from_f32(p[1]), f16::from_f32(p[2]))
+        (
+            f16::from_f32(p[0]),
+            f16::from_f32(p[1]),
+            f16::from_f32(p[2]),
+        )
     });
     let layer = Layer::new(
         (img.width as usize, img.height as usize),

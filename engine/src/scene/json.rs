@@ -113,7 +113,9 @@ impl CameraDoc {
                 }
                 Camera::look_at(position, (*target).into(), up, 1, 1, 1.0).rotation
             }
-            (Some(_), Some(_)) => return Err(bad("give either \"rotation\" or \"look_at\", not both")),
+            (Some(_), Some(_)) => {
+                return Err(bad("give either \"rotation\" or \"look_at\", not both"))
+            }
             (None, None) => return Err(bad("missing field \"rotation\" (or \"look_at\")")),
         };
         Ok(Camera {
@@ -148,7 +150,14 @@ impl CameraDoc {
 impl LightDoc {
     pub fn to_light(&self) -> Light {
         match self {
-            LightDoc::Quad { name, corner, edge_u, edge_v, radiance, original } => Light {
+            LightDoc::Quad {
+                name,
+                corner,
+                edge_u,
+                edge_v,
+                radiance,
+                original,
+            } => Light {
                 name: name.clone(),
                 shape: LightShape::Quad {
                     corner: (*corner).into(),
@@ -158,7 +167,14 @@ impl LightDoc {
                 radiance: *radiance,
                 original: *original,
             },
-            LightDoc::Disk { name, center, normal, radius, radiance, original } => Light {
+            LightDoc::Disk {
+                name,
+                center,
+                normal,
+                radius,
+                radiance,
+                original,
+            } => Light {
                 name: name.clone(),
                 shape: LightShape::Disk {
                     center: (*center).into(),
@@ -173,7 +189,11 @@ impl LightDoc {
 
     pub fn from_light(l: &Light) -> LightDoc {
         match l.shape {
-            LightShape::Quad { corner, edge_u, edge_v } => LightDoc::Quad {
+            LightShape::Quad {
+                corner,
+                edge_u,
+                edge_v,
+            } => LightDoc::Quad {
                 name: l.name.clone(),
                 corner: corner.into(),
                 edge_u: edge_u.into(),
@@ -181,7 +201,11 @@ impl LightDoc {
                 radiance: l.radiance,
                 original: l.original,
             },
-            LightShape::Disk { center, normal, radius } => LightDoc::Disk {
+            LightShape::Disk {
+                center,
+                normal,
+                radius,
+            } => LightDoc::Disk {
                 name: l.name.clone(),
                 center: center.into(),
                 normal: normal.into(),
@@ -195,13 +219,21 @@ impl LightDoc {
 
 fn presets(docs: &[PresetDoc]) -> Vec<LightingPreset> {
     docs.iter()
-        .map(|p| LightingPreset { name: p.name.clone(), dim: p.dim, intensities: p.intensities.clone() })
+        .map(|p| LightingPreset {
+            name: p.name.clone(),
+            dim: p.dim,
+            intensities: p.intensities.clone(),
+        })
         .collect()
 }
 
 fn preset_docs(p: &[LightingPreset]) -> Vec<PresetDoc> {
     p.iter()
-        .map(|p| PresetDoc { name: p.name.clone(), dim: p.dim, intensities: p.intensities.clone() })
+        .map(|p| PresetDoc {
+            name: p.name.clone(),
+            dim: p.dim,
+            intensities: p.intensities.clone(),
+        })
         .collect()
 }
 
@@ -214,7 +246,10 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
     let file = dir.join(SCENE_FILE);
     let doc: SceneDoc = parse(&file)?;
     if doc.version != 1 {
-        return Err(Error::input(&file, format!("version {}; this Relit reads version 1", doc.version)));
+        return Err(Error::input(
+            &file,
+            format!("version {}; this Relit reads version 1", doc.version),
+        ));
     }
     let mut views = Vec::with_capacity(doc.views.len());
     for v in &doc.views {
@@ -246,11 +281,17 @@ pub(crate) fn load_sidecar(dir: &Path) -> Result<(Vec<Light>, Vec<LightingPreset
         return Ok((Vec::new(), Vec::new()));
     }
     let doc: LightsDoc = parse(&file)?;
-    Ok((doc.lights.iter().map(LightDoc::to_light).collect(), presets(&doc.presets)))
+    Ok((
+        doc.lights.iter().map(LightDoc::to_light).collect(),
+        presets(&doc.presets),
+    ))
 }
 
 pub(crate) fn write_sidecar(dir: &Path, lights: &[Light], p: &[LightingPreset]) -> Result<()> {
-    let doc = LightsDoc { lights: lights.iter().map(LightDoc::from_light).collect(), presets: preset_docs(p) };
+    let doc = LightsDoc {
+        lights: lights.iter().map(LightDoc::from_light).collect(),
+        presets: preset_docs(p),
+    };
     let text = serde_json::to_string_pretty(&doc).map_err(|e| Error::Other(e.to_string()))?;
     super::write_atomic(&dir.join(LIGHTS_FILE), text.as_bytes())
 }
@@ -270,7 +311,11 @@ pub fn write(dir: &Path, scene: &Scene) -> Result<()> {
         views: scene
             .views
             .iter()
-            .map(|v| ViewDoc { name: v.name.clone(), image: rel(&v.image), camera: CameraDoc::from_camera(&v.camera) })
+            .map(|v| ViewDoc {
+                name: v.name.clone(),
+                image: rel(&v.image),
+                camera: CameraDoc::from_camera(&v.camera),
+            })
             .collect(),
         lights: scene.lights.iter().map(LightDoc::from_light).collect(),
         presets: preset_docs(&scene.presets),

@@ -48,8 +48,15 @@ impl Mesh {
                 ));
             }
         }
-        if let Some(i) = self.positions.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
-            return Err(format!("vertex {i} has a non-finite coordinate {:?}", self.positions[i]));
+        if let Some(i) = self
+            .positions
+            .iter()
+            .position(|p| !p.iter().all(|v| v.is_finite()))
+        {
+            return Err(format!(
+                "vertex {i} has a non-finite coordinate {:?}",
+                self.positions[i]
+            ));
         }
         Ok(())
     }
@@ -81,8 +88,12 @@ impl Mesh {
     pub fn append(&mut self, other: &Mesh) {
         let base = self.positions.len() as u32;
         self.positions.extend_from_slice(&other.positions);
-        self.triangles
-            .extend(other.triangles.iter().map(|t| [t[0] + base, t[1] + base, t[2] + base]));
+        self.triangles.extend(
+            other
+                .triangles
+                .iter()
+                .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
+        );
     }
 
     /// Writes a Wavefront OBJ (positions and faces).
@@ -162,11 +173,9 @@ fn load_obj(path: &Path) -> Result<Mesh> {
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, _) = tobj::load_obj_buf(
-        &mut std::io::Cursor::new(text.as_bytes()),
-        &opts,
-        |_| Ok((Vec::new(), Default::default())),
-    )
+    let (models, _) = tobj::load_obj_buf(&mut std::io::Cursor::new(text.as_bytes()), &opts, |_| {
+        Ok((Vec::new(), Default::default()))
+    })
     .map_err(|e| Error::input(path, format!("OBJ parse error: {e}")))?;
     let mut mesh = Mesh::default();
     // Every model of an OBJ shares one vertex list in the file; tobj splits it per model.
@@ -341,7 +350,10 @@ fn load_ply(path: &Path) -> Result<Mesh> {
         PlyReader::Ascii(text.split_ascii_whitespace())
     };
     // Guard against absurd counts before allocating.
-    let min_bytes: usize = elements.iter().map(|e| e.count.saturating_mul(e.props.len())).sum();
+    let min_bytes: usize = elements
+        .iter()
+        .map(|e| e.count.saturating_mul(e.props.len()))
+        .sum();
     if binary && min_bytes > body.len() {
         return Err(bad(format!(
             "header declares {} but the file has only {} bytes of data",
@@ -386,7 +398,9 @@ fn load_ply(path: &Path) -> Result<Mesh> {
                     }
                     if is_face && Some(pi) == fi {
                         if n < 3 {
-                            return Err(bad(format!("face {i} has {n} vertices; at least 3 needed")));
+                            return Err(bad(format!(
+                                "face {i} has {n} vertices; at least 3 needed"
+                            )));
                         }
                         for k in 1..n - 1 {
                             let tri = [poly[0], poly[k], poly[k + 1]];
@@ -415,9 +429,15 @@ fn load_ply(path: &Path) -> Result<Mesh> {
             }
             if is_vertex {
                 mesh.positions.push(vals.map(|v| v as f32));
-                if ri.is_some() {
-                    let scale = if e.props[ri.unwrap()].ty == PlyType::U8 { 255.0 } else { 1.0 };
-                    colors.push(col.map(|c| crate::scene::image::srgb_to_linear((c / scale) as f32)));
+                if let Some(ri) = ri {
+                    // 8-bit colours are sRGB-encoded 0..255; float ones are taken as 0..1.
+                    let scale = if e.props[ri].ty == PlyType::U8 {
+                        255.0
+                    } else {
+                        1.0
+                    };
+                    colors
+                        .push(col.map(|c| crate::scene::image::srgb_to_linear((c / scale) as f32)));
                 }
             }
         }

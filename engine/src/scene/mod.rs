@@ -54,9 +54,17 @@ pub struct View {
 pub enum LightShape {
     /// A parallelogram: `corner`, `corner + edge_u`, `corner + edge_v`, `corner + edge_u + edge_v`;
     /// it emits on the side of `edge_u × edge_v`.
-    Quad { corner: Vec3, edge_u: Vec3, edge_v: Vec3 },
+    Quad {
+        corner: Vec3,
+        edge_u: Vec3,
+        edge_v: Vec3,
+    },
     /// A disk emitting on the side of `normal`.
-    Disk { center: Vec3, normal: Vec3, radius: f32 },
+    Disk {
+        center: Vec3,
+        normal: Vec3,
+        radius: f32,
+    },
 }
 
 impl LightShape {
@@ -68,7 +76,11 @@ impl LightShape {
     }
     pub fn center(&self) -> Vec3 {
         match self {
-            LightShape::Quad { corner, edge_u, edge_v } => *corner + 0.5 * (*edge_u + *edge_v),
+            LightShape::Quad {
+                corner,
+                edge_u,
+                edge_v,
+            } => *corner + 0.5 * (*edge_u + *edge_v),
             LightShape::Disk { center, .. } => *center,
         }
     }
@@ -112,7 +124,10 @@ impl Scene {
             return json::load(path.parent().unwrap_or(Path::new(".")));
         }
         if !path.is_dir() {
-            return Err(Error::input(path, "not a scene directory (it does not exist or is not a directory)"));
+            return Err(Error::input(
+                path,
+                "not a scene directory (it does not exist or is not a directory)",
+            ));
         }
         match detect(path) {
             Some(SceneFormat::Relit) => json::load(path),
@@ -161,17 +176,24 @@ impl Scene {
                 .validate()
                 .map_err(|m| Error::input(file, format!("view {}: camera: {m}", v.name)))?;
             if !names.insert(&v.name) {
-                return Err(Error::input(file, format!("view name {} appears twice", v.name)));
+                return Err(Error::input(
+                    file,
+                    format!("view name {} appears twice", v.name),
+                ));
             }
         }
         for l in &self.lights {
             if !l.radiance.iter().all(|v| v.is_finite() && *v >= 0.0) {
                 return Err(Error::input(
                     file,
-                    format!("light {}: radiance {:?} must be finite and >= 0", l.name, l.radiance),
+                    format!(
+                        "light {}: radiance {:?} must be finite and >= 0",
+                        l.name, l.radiance
+                    ),
                 ));
             }
-            if !(l.shape.area() > 0.0) {
+            let area = l.shape.area();
+            if area.is_nan() || area <= 0.0 {
                 return Err(Error::input(file, format!("light {}: zero area", l.name)));
             }
         }
@@ -179,14 +201,20 @@ impl Scene {
             if !(0.0..=1.0).contains(&p.dim) {
                 return Err(Error::input(
                     file,
-                    format!("preset {}: dim = {}; expected 0 (keep) to 1 (remove)", p.name, p.dim),
+                    format!(
+                        "preset {}: dim = {}; expected 0 (keep) to 1 (remove)",
+                        p.name, p.dim
+                    ),
                 ));
             }
             for (l, v) in &p.intensities {
                 if !self.lights.iter().any(|x| &x.name == l) {
                     return Err(Error::input(
                         file,
-                        format!("preset {}: names light \"{l}\", which the scene does not have", p.name),
+                        format!(
+                            "preset {}: names light \"{l}\", which the scene does not have",
+                            p.name
+                        ),
                     ));
                 }
                 if !(v.is_finite() && *v >= 0.0) {
@@ -260,6 +288,9 @@ pub(crate) fn find_mesh(dir: &Path, candidates: &[&str]) -> Result<PathBuf> {
         .map(|c| dir.join(c))
         .find(|p| p.is_file())
         .ok_or_else(|| {
-            Error::input(dir, format!("no mesh found; expected one of {}", candidates.join(", ")))
+            Error::input(
+                dir,
+                format!("no mesh found; expected one of {}", candidates.join(", ")),
+            )
         })
 }

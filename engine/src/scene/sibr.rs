@@ -13,11 +13,19 @@ use glam::{Mat3, Vec3};
 use super::{json, Camera, Mesh, Scene, SceneFormat, View};
 use crate::error::{Error, Result};
 
-const MESH_CANDIDATES: &[&str] = &["meshes/recon.ply", "meshes/recon.obj", "meshes/mesh.ply", "meshes/mesh.obj"];
+const MESH_CANDIDATES: &[&str] = &[
+    "meshes/recon.ply",
+    "meshes/recon.obj",
+    "meshes/mesh.ply",
+    "meshes/mesh.obj",
+];
 const METADATA: &str = "scene_metadata.txt";
 
 /// Image names and sizes from `scene_metadata.txt`, or from the `images/` folder when absent.
-fn image_list(dir: &Path) -> Result<Vec<(PathBuf, Option<(u32, u32)>)>> {
+/// An image path and, when the metadata gives it, its size.
+type ImageEntry = (PathBuf, Option<(u32, u32)>);
+
+fn image_list(dir: &Path) -> Result<Vec<ImageEntry>> {
     let meta = dir.join(METADATA);
     if meta.is_file() {
         let text = super::read_text(&meta)?;
@@ -36,15 +44,24 @@ fn image_list(dir: &Path) -> Result<Vec<(PathBuf, Option<(u32, u32)>)>> {
             if t.len() < 3 {
                 return Err(Error::input(
                     &meta,
-                    format!("line {}: expected \"<filename> <width> <height> [near far]\"", i + 1),
+                    format!(
+                        "line {}: expected \"<filename> <width> <height> [near far]\"",
+                        i + 1
+                    ),
                 ));
             }
             let parse = |s: &str, f: &str| {
                 s.parse::<u32>().map_err(|_| {
-                    Error::input(&meta, format!("line {}: {f} \"{s}\" is not a whole number", i + 1))
+                    Error::input(
+                        &meta,
+                        format!("line {}: {f} \"{s}\" is not a whole number", i + 1),
+                    )
                 })
             };
-            out.push((dir.join("images").join(t[0]), Some((parse(t[1], "width")?, parse(t[2], "height")?))));
+            out.push((
+                dir.join("images").join(t[0]),
+                Some((parse(t[1], "width")?, parse(t[2], "height")?)),
+            ));
         }
         if out.is_empty() {
             return Err(Error::input(&meta, "no [list_images] entries"));
@@ -56,9 +73,9 @@ fn image_list(dir: &Path) -> Result<Vec<(PathBuf, Option<(u32, u32)>)>> {
         .map_err(|e| Error::io(&images, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
-            p.extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| ["exr", "png", "jpg", "jpeg"].contains(&e.to_ascii_lowercase().as_str()))
+            p.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+                ["exr", "png", "jpg", "jpeg"].contains(&e.to_ascii_lowercase().as_str())
+            })
         })
         .collect();
     files.sort();
@@ -80,11 +97,17 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
             .split_whitespace()
             .map(|t| t.parse::<f64>())
             .collect::<std::result::Result<_, _>>()
-            .map_err(|_| Error::input(&file, format!("line {}: {what}: expected numbers", i + 1)))?;
+            .map_err(|_| {
+                Error::input(&file, format!("line {}: {what}: expected numbers", i + 1))
+            })?;
         if v.len() != n {
             return Err(Error::input(
                 &file,
-                format!("line {}: {what}: expected {n} numbers, found {}", i + 1, v.len()),
+                format!(
+                    "line {}: {what}: expected {n} numbers, found {}",
+                    i + 1,
+                    v.len()
+                ),
             ));
         }
         Ok((i + 1, v))
@@ -98,7 +121,11 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
             format!(
                 "bundle.out has {ncams} cameras but {} images are listed ({})",
                 images.len(),
-                if dir.join(METADATA).is_file() { METADATA } else { "images/" }
+                if dir.join(METADATA).is_file() {
+                    METADATA
+                } else {
+                    "images/"
+                }
             ),
         ));
     }
@@ -130,7 +157,11 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
         );
         let f = fk[0] as f32;
         views.push(View {
-            name: img.file_name().unwrap_or_default().to_string_lossy().into_owned(),
+            name: img
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned(),
             image: img,
             camera: Camera {
                 width: w,
@@ -178,7 +209,10 @@ pub fn write(dir: &Path, scene: &Scene) -> Result<()> {
         {
             return Err(Error::input(
                 &cams,
-                format!("view {}: Bundler needs fx = fy and a centred principal point", v.name),
+                format!(
+                    "view {}: Bundler needs fx = fy and a centred principal point",
+                    v.name
+                ),
             ));
         }
         let r = flip * c.rotation;

@@ -8,10 +8,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::{
-    Camera, Light, LightShape, LightingPreset, Mesh, RgbImage, Scene,
-    SceneFormat, View,
-};
+use super::{Camera, Light, LightShape, LightingPreset, Mesh, RgbImage, Scene, SceneFormat, View};
 use crate::error::{Error, Result};
 
 #[derive(Clone, Debug)]
@@ -26,7 +23,13 @@ pub struct SynthOptions {
 
 impl Default for SynthOptions {
     fn default() -> Self {
-        SynthOptions { views: 6, width: 64, height: 48, seed: 1, wall_subdiv: 4 }
+        SynthOptions {
+            views: 6,
+            width: 64,
+            height: 48,
+            seed: 1,
+            wall_subdiv: 4,
+        }
     }
 }
 
@@ -79,16 +82,20 @@ fn boxed(lo: Vec3, hi: Vec3, n: u32, inward: bool) -> Mesh {
     let (x, y, z) = (Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z);
     // (corner, u, v) with u × v pointing outward.
     let faces = [
-        (lo, z, y),         // -X
-        (lo + x, y, z),     // +X
-        (lo, x, z),         // -Y
-        (lo + y, z, x),     // +Y
-        (lo, y, x),         // -Z
-        (lo + z, x, y),     // +Z
+        (lo, z, y),     // -X
+        (lo + x, y, z), // +X
+        (lo, x, z),     // -Y
+        (lo + y, z, x), // +Y
+        (lo, y, x),     // -Z
+        (lo + z, x, y), // +Z
     ];
     let mut m = Mesh::default();
     for (c, u, v) in faces {
-        let f = if inward { grid(c, v, u, n) } else { grid(c, u, v, n) };
+        let f = if inward {
+            grid(c, v, u, n)
+        } else {
+            grid(c, u, v, n)
+        };
         m.append(&f);
     }
     m
@@ -103,7 +110,12 @@ pub fn room(subdiv: u32) -> (Mesh, Vec<[f32; 3]>) {
         albedo.extend(std::iter::repeat_n(a, m.triangles.len()));
         mesh.append(&m);
     };
-    let room = boxed(Vec3::new(-2.0, 0.0, -1.75), Vec3::new(2.0, 2.6, 1.75), subdiv, true);
+    let room = boxed(
+        Vec3::new(-2.0, 0.0, -1.75),
+        Vec3::new(2.0, 2.6, 1.75),
+        subdiv,
+        true,
+    );
     // Colour the room's faces: walls, floor (-Y face is third), ceiling.
     let per_face = room.triangles.len() / 6;
     let colors = [
@@ -115,13 +127,44 @@ pub fn room(subdiv: u32) -> (Mesh, Vec<[f32; 3]>) {
         [0.5, 0.65, 0.45],
     ];
     for (f, c) in colors.iter().enumerate() {
-        let mut face = Mesh { positions: room.positions.clone(), colors: None, triangles: Vec::new() };
+        let mut face = Mesh {
+            positions: room.positions.clone(),
+            colors: None,
+            triangles: Vec::new(),
+        };
         face.triangles = room.triangles[f * per_face..(f + 1) * per_face].to_vec();
         add(face, *c, &mut mesh);
     }
-    add(boxed(Vec3::new(-0.6, 0.0, -0.4), Vec3::new(0.5, 0.75, 0.3), 1, false), [0.6, 0.35, 0.2], &mut mesh);
-    add(boxed(Vec3::new(1.2, 0.0, -1.7), Vec3::new(1.9, 1.8, -1.1), 1, false), [0.3, 0.3, 0.35], &mut mesh);
-    add(boxed(Vec3::new(-1.6, 0.0, 0.9), Vec3::new(-1.3, 2.6, 1.2), 1, false), [0.85, 0.85, 0.8], &mut mesh);
+    add(
+        boxed(
+            Vec3::new(-0.6, 0.0, -0.4),
+            Vec3::new(0.5, 0.75, 0.3),
+            1,
+            false,
+        ),
+        [0.6, 0.35, 0.2],
+        &mut mesh,
+    );
+    add(
+        boxed(
+            Vec3::new(1.2, 0.0, -1.7),
+            Vec3::new(1.9, 1.8, -1.1),
+            1,
+            false,
+        ),
+        [0.3, 0.3, 0.35],
+        &mut mesh,
+    );
+    add(
+        boxed(
+            Vec3::new(-1.6, 0.0, 0.9),
+            Vec3::new(-1.3, 2.6, 1.2),
+            1,
+            false,
+        ),
+        [0.85, 0.85, 0.8],
+        &mut mesh,
+    );
     // Drop the vertices the face split duplicated but no triangle uses.
     (compact(mesh), albedo)
 }
@@ -185,7 +228,9 @@ pub fn shade(mesh: &Mesh, albedo: &[[f32; 3]], cam: &Camera, light: &Light) -> R
     for y in 0..cam.height {
         for x in 0..cam.width {
             let d = cam.ray_dir(glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5));
-            let Some(h) = crate::cpu::closest_hit(mesh, o, d, 1e-3, 100.0) else { continue };
+            let Some(h) = crate::cpu::closest_hit(mesh, o, d, 1e-3, 100.0) else {
+                continue;
+            };
             let p = o + d * h.t;
             let mut n = mesh.face_normal(h.tri as usize);
             if n.dot(d) > 0.0 {
@@ -195,9 +240,16 @@ pub fn shade(mesh: &Mesh, albedo: &[[f32; 3]], cam: &Camera, light: &Light) -> R
             let dist2 = to_l.length_squared();
             let l = to_l / dist2.sqrt();
             let cos = n.dot(l).max(0.0) * (-l.y).max(0.0);
-            let lit = cos > 0.0 && !crate::cpu::occluded(mesh, p + n * 1e-3, l, 1e-3, dist2.sqrt() - 0.02);
+            let lit = cos > 0.0
+                && !crate::cpu::occluded(mesh, p + n * 1e-3, l, 1e-3, dist2.sqrt() - 0.02);
             let a = albedo[h.tri as usize];
-            let e = |k: usize| 0.25 + if lit { power[k] * cos / (std::f32::consts::PI * dist2) } else { 0.0 };
+            let e = |k: usize| {
+                0.25 + if lit {
+                    power[k] * cos / (std::f32::consts::PI * dist2)
+                } else {
+                    0.0
+                }
+            };
             img.set(x, y, [a[0] * e(0), a[1] * e(1), a[2] * e(2)]);
         }
     }
@@ -211,7 +263,11 @@ pub fn capture_cameras(opts: &SynthOptions) -> Vec<Camera> {
         .map(|i| {
             let a = i as f32 / opts.views as f32 * std::f32::consts::TAU + rng.range(-0.2, 0.2);
             let pos = Vec3::new(1.35 * a.cos(), rng.range(1.2, 1.7), 1.1 * a.sin());
-            let target = Vec3::new(rng.range(-0.5, 0.5), rng.range(0.4, 1.0), rng.range(-0.5, 0.5));
+            let target = Vec3::new(
+                rng.range(-0.5, 0.5),
+                rng.range(0.4, 1.0),
+                rng.range(-0.5, 0.5),
+            );
             let fx = opts.width as f32 * rng.range(0.55, 0.75);
             Camera::look_at(pos, target, Vec3::Y, opts.width, opts.height, fx)
         })
@@ -239,7 +295,11 @@ pub fn write_room(dir: &Path, format: SceneFormat, opts: &SynthOptions) -> Resul
         let name = format!("{i:03}.exr");
         let path = images.join(&name);
         super::image::write_exr(&path, &shade(&mesh, &albedo, &cam, &lights[0]))?;
-        views.push(View { name, image: path, camera: cam });
+        views.push(View {
+            name,
+            image: path,
+            camera: cam,
+        });
     }
     let scene = Scene {
         root: dir.to_path_buf(),

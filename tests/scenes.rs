@@ -1,0 +1,416 @@
+//! Scene loaders: camera conventions agree across formats, meshes and images round-trip, and
+//! malformed input gets an error naming the file and the problem (never a panic).
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use relit_engine::scene::image::{load_rgb, write_exr, RgbImage};
+use relit_engine::scene::synth::{self, Rng, SynthOptions};
+use relit_engine::scene::{Mesh, Scene, SceneFormat};
+
+fn opts() -> SynthOptions {
+    SynthOptions {
+        views: 4,
+        width: 40,
+        height: 30,
+        seed: 5,
+        wall_subdiv: 2,
+    }
+}
+
+#[test]
+fn camera_conventions_round_trip_through_all_formats() {
+    let truth = synth::capture_cameras(&opts());
+    let mut rng = Rng::new(11);
+    let points: Vec<Vec3> = (0..200)
+        .map(|_| {
+            Vec3::new(
+                rng.range(-1.9, 1.9),
+                rng.range(0.1, 2.5),
+                rng.range(-1.7, 1.7),
+            )
+        })
+        .collect();
+    for format in [SceneFormat::Relit, SceneFormat::Colmap, SceneFormat::Sibr] {
+        let dir = common::tempdir(&format!("roundtrip-{format:?}"));
+        synth::write_room(&dir, format, &opts()).unwrap();
+        let s = Scene::load(&dir).unwrap();
+        assert_eq!(s.format, format);
+        assert_eq!(s.views.len(), truth.len());
+        s.check_images().unwrap();
+        for (v, t) in s.views.iter().zip(&truth) {
+            let mut checked = 0;
+            for p in &points {
+                let (Some((a, za)), Some((b, zb))) = (v.camera.project(*p), t.project(*p)) else {
+                    assert_eq!(v.camera.project(*p).is_some(), t.project(*p).is_some());
+                    continue;
+                };
+                // Only points in the image: far outside, f32 rounding exceeds the tolerance.
+                if b.x < 0.0 || b.y < 0.0 || b.x > t.width as f32 || b.y > t.height as f32 {
+                    continue;
+                }
+                // Tolerance: 1e-3 px and 1e-5 relative depth (text formats print f32 exactly
+                // enough; COLMAP's quaternion adds a little rounding).
+                assert!((a - b).length() < 1e-3, "{format:?} {}: {a} vs {b}", v.name);
+                assert!(
+                    (za - zb).abs() < 1e-5 * zb,
+                    "{format:?}: depth {za} vs {zb}"
+                );
+                checked += 1;
+            }
+            assert!(checked > 10, "{checked} points in view");
+            assert!((v.camera.center() - t.center()).length() < 1e-4);
+        }
+    }
+}
+
+#[test]
+fn ply_ascii_binary_and_obj_load_the_same_mesh() {
+    let dir = common::tempdir("meshes");
+    let (mesh, _) = synth::room(2);
+    mesh.write_ply(&dir.join("b.ply")).unwrap();
+    mesh.write_obj(&dir.join("m.obj")).unwrap();
+    let mut ascii = format!(
+        "ply\nformat ascii 1.0\ncomment test\nelement vertex {}\nproperty float x\nproperty float y\n\
+         property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
+         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        mesh.positions.len(),
+        mesh.triangles.len()
+    );
+    for p in &mesh.positions {
+        ascii += &format!("{} {} {} 255 128 0\n", p[0], p[1], p[2]);
+    }
+    for t in &mesh.triangles {
+        ascii += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
+    }
+    std::fs::write(dir.join("a.ply"), ascii).unwrap();
+    let a = Mesh::load(&dir.join("a.ply")).unwrap();
+    let b = Mesh::load(&dir.join("b.ply")).unwrap();
+    let o = Mesh::load(&dir.join("m.obj")).unwrap();
+    for m in [&a, &b, &o] {
+        assert_eq!(m.positions, mesh.positions);
+        assert_eq!(m.triangles, mesh.triangles);
+    }
+    let c = a.colors.unwrap()[0];
+    assert!(
+        (c[0] - 1.0).abs() < 1e-6 && (c[1] - 0.2158605).abs() < 1e-4 && c[2] == 0.0,
+        "sRGB-decoded colour {c:?}"
+    );
+}
+
+#[test]
+fn exr_and_png_round_trip() {
+    let dir = common::tempdir("images");
+    let mut img = RgbImage::new(7, 5);
+    for y in 0..5 {
+        for x in 0..7 {
+            img.set(x, y, [x as f32 * 0.5, y as f32 * 3.0, 100.0]);
+        }
+    }
+    write_exr(&dir.join("a.exr"), &img).unwrap();
+    let back = load_rgb(&dir.join("a.exr")).unwrap();
+    for (p, q) in img.pixels.iter().zip(&back.pixels) {
+        for k in 0..3 {
+            // Half-float storage: 2^-11 relative.
+            assert!((p[k] - q[k]).abs() <= p[k].abs() * 1e-3, "{p:?} vs {q:?}");
+        }
+    }
+    let mut ldr = RgbImage::new(2, 1);
+    ldr.set(0, 0, [0.5, 0.0, 1.0]);
+    relit_engine::scene::image::write_png(&dir.join("a.png"), &ldr, 1.0).unwrap();
+    let back = load_rgb(&dir.join("a.png")).unwrap();
+    assert!(
+        (back.get(0, 0)[0] - 0.5).abs() < 0.01,
+        "sRGB decode {:?}",
+        back.get(0, 0)
+    );
+}
+
+/// A CRC-32 (PNG's) for hand-made chunks.
+fn crc32(data: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in data {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// A PNG whose header claims `w`×`h` and which has no pixel data.
+fn png_header_only(w: u32, h: u32) -> Vec<u8> {
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = b"IHDR".to_vec();
+    ihdr.extend_from_slice(&w.to_be_bytes());
+    ihdr.extend_from_slice(&h.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
+    out.extend_from_slice(&13u32.to_be_bytes());
+    out.extend_from_slice(&ihdr);
+    out.extend_from_slice(&crc32(&ihdr).to_be_bytes());
+    // A token IDAT: decoders read the header up to the first data chunk.
+    let idat = b"IDAT\x78\x9c\x03\x00\x00\x00\x00\x01";
+    out.extend_from_slice(&((idat.len() - 4) as u32).to_be_bytes());
+    out.extend_from_slice(idat);
+    out.extend_from_slice(&crc32(idat).to_be_bytes());
+    out.extend_from_slice(&0u32.to_be_bytes());
+    out.extend_from_slice(b"IEND");
+    out.extend_from_slice(&crc32(b"IEND").to_be_bytes());
+    out
+}
+
+/// A fresh copy of the small room in `format`.
+fn room(name: &str, format: SceneFormat) -> PathBuf {
+    let dir = common::tempdir(name);
+    synth::write_room(&dir, format, &opts()).unwrap();
+    dir
+}
+
+fn edit(path: &Path, from: &str, to: &str) {
+    let s = std::fs::read_to_string(path).unwrap();
+    assert!(s.contains(from), "{} has no {from:?}", path.display());
+    std::fs::write(path, s.replacen(from, to, 1)).unwrap();
+}
+
+/// Loads the scene (and its images) and returns the error text; fails if it loads, and
+/// checks that the message names `file` and contains `expect`.
+fn expect_error(dir: &Path, file: &str, expect: &str) {
+    let res = std::panic::catch_unwind(|| Scene::load(dir).and_then(|s| s.check_images()));
+    let err = match res {
+        Err(_) => panic!("{}: the loader panicked", dir.display()),
+        Ok(Ok(())) => panic!(
+            "{}: malformed input was accepted (expected \"{expect}\")",
+            dir.display()
+        ),
+        Ok(Err(e)) => e.to_string(),
+    };
+    eprintln!("ok: {err}");
+    assert!(err.contains(file), "error does not name {file}: {err}");
+    assert!(
+        err.to_lowercase().contains(&expect.to_lowercase()),
+        "error lacks \"{expect}\": {err}"
+    );
+}
+
+#[test]
+fn malformed_inputs_get_clear_errors() {
+    let j = SceneFormat::Relit;
+    let mut cases = 0;
+
+    // 1. Truncated EXR.
+    let d = room("bad-exr-trunc", j);
+    let f = d.join("images/001.exr");
+    let bytes = std::fs::read(&f).unwrap();
+    std::fs::write(&f, &bytes[..bytes.len() / 2]).unwrap();
+    expect_error(&d, "001.exr", "EXR");
+    cases += 1;
+
+    // 2-3. NaN and Inf pixels.
+    for (k, v) in [("nan", f32::NAN), ("inf", f32::INFINITY)] {
+        let d = room(&format!("bad-exr-{k}"), j);
+        let mut img = load_rgb(&d.join("images/002.exr")).unwrap();
+        img.set(3, 4, [0.1, v, 0.2]);
+        write_exr(&d.join("images/002.exr"), &img).unwrap();
+        expect_error(&d, "002.exr", "pixel (3, 4)");
+        cases += 1;
+    }
+
+    // 4. Image header claiming 100000×100000.
+    let d = room("bad-png-huge", j);
+    std::fs::write(d.join("images/huge.png"), png_header_only(100_000, 100_000)).unwrap();
+    edit(&d.join("scene.json"), "images/000.exr", "images/huge.png");
+    expect_error(&d, "huge.png", "100000x100000");
+    cases += 1;
+
+    // 5. Image size different from its camera.
+    let d = room("bad-size", j);
+    write_exr(&d.join("images/000.exr"), &RgbImage::new(8, 8)).unwrap();
+    expect_error(&d, "000.exr", "8x8");
+    cases += 1;
+
+    // 6. Missing image file.
+    let d = room("bad-missing-image", j);
+    std::fs::remove_file(d.join("images/003.exr")).unwrap();
+    expect_error(&d, "003.exr", "does not exist");
+    cases += 1;
+
+    // 7. Unreadable mesh (a directory where the file should be).
+    let d = room("bad-unreadable", j);
+    std::fs::remove_file(d.join("mesh.ply")).unwrap();
+    std::fs::create_dir(d.join("mesh.ply")).unwrap();
+    expect_error(&d, "mesh.ply", "directory");
+    cases += 1;
+
+    // 8. JSON missing a field, and a misspelt one.
+    let d = room("bad-json-missing", j);
+    let s = std::fs::read_to_string(d.join("scene.json")).unwrap();
+    let a = s.find("\"fy\": ").unwrap();
+    let b = a + s[a..].find('\n').unwrap() + 1;
+    std::fs::write(d.join("scene.json"), format!("{}{}", &s[..a], &s[b..])).unwrap();
+    expect_error(&d, "scene.json", "missing field `fy`");
+    let d = room("bad-json-field", j);
+    edit(&d.join("scene.json"), "\"fx\":", "\"fx_typo\":");
+    expect_error(&d, "scene.json", "unknown field `fx_typo`");
+    cases += 1;
+
+    // 9. Not JSON at all.
+    let d = room("bad-json-syntax", j);
+    std::fs::write(d.join("scene.json"), "{ \"version\": 1, \"mesh\": ").unwrap();
+    expect_error(&d, "scene.json", "EOF");
+    cases += 1;
+
+    // 10. Zero focal length.
+    let d = room("bad-zero-focal", j);
+    let s = std::fs::read_to_string(d.join("scene.json")).unwrap();
+    let fx_pos = s.find("\"fx\": ").unwrap() + 6;
+    let end = fx_pos + s[fx_pos..].find(',').unwrap();
+    std::fs::write(
+        d.join("scene.json"),
+        format!("{}0.0{}", &s[..fx_pos], &s[end..]),
+    )
+    .unwrap();
+    expect_error(&d, "scene.json", "focal length fx = 0");
+    cases += 1;
+
+    // 11. A preset that names a light the scene lacks.
+    let d = room("bad-preset", j);
+    edit(&d.join("scene.json"), "\"lamp\": 1.0", "\"desk\": 1.0");
+    expect_error(&d, "scene.json", "desk");
+    cases += 1;
+
+    // 12. OBJ face index out of range.
+    let d = room("bad-obj", j);
+    std::fs::write(
+        d.join("mesh.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n",
+    )
+    .unwrap();
+    edit(&d.join("scene.json"), "mesh.ply", "mesh.obj");
+    expect_error(&d, "mesh.obj", "out of range");
+    cases += 1;
+
+    // 13. PLY whose header declares more vertices than the file holds.
+    let d = room("bad-ply-count", j);
+    let ply = std::fs::read(d.join("mesh.ply")).unwrap();
+    let text = String::from_utf8_lossy(&ply);
+    let n = text
+        .split("element vertex ")
+        .nth(1)
+        .unwrap()
+        .split('\n')
+        .next()
+        .unwrap()
+        .to_string();
+    let fixed = String::from_utf8_lossy(&ply).replacen(
+        &format!("element vertex {n}"),
+        &format!("element vertex {}", 100 * n.parse::<usize>().unwrap()),
+        1,
+    );
+    // Rebuild from bytes: only the header is text.
+    let hdr_end = ply.windows(10).position(|w| w == b"end_header").unwrap() + 11;
+    let new_hdr = fixed.split("end_header\n").next().unwrap().to_string() + "end_header\n";
+    let mut out = new_hdr.into_bytes();
+    out.extend_from_slice(&ply[hdr_end..]);
+    std::fs::write(d.join("mesh.ply"), out).unwrap();
+    expect_error(&d, "mesh.ply", "header declares");
+    cases += 1;
+
+    // 14. ASCII PLY with fewer faces than declared.
+    let d = room("bad-ply-ascii", j);
+    std::fs::write(
+        d.join("mesh.ply"),
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+         element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+    )
+    .unwrap();
+    expect_error(&d, "mesh.ply", "file ends inside face 1");
+    cases += 1;
+
+    // 15. PLY face index out of range.
+    let d = room("bad-ply-index", j);
+    std::fs::write(
+        d.join("mesh.ply"),
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+         element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n",
+    )
+    .unwrap();
+    expect_error(&d, "mesh.ply", "references vertex 7");
+    cases += 1;
+
+    // 16. Big-endian PLY.
+    let d = room("bad-ply-be", j);
+    std::fs::write(
+        d.join("mesh.ply"),
+        "ply\nformat binary_big_endian 1.0\nelement vertex 0\nend_header\n",
+    )
+    .unwrap();
+    expect_error(&d, "mesh.ply", "binary_big_endian");
+    cases += 1;
+
+    // 17. COLMAP camera model with distortion.
+    let d = room("bad-colmap-model", SceneFormat::Colmap);
+    let cams = d.join("sparse/0/cameras.txt");
+    let s = std::fs::read_to_string(&cams).unwrap();
+    let line = s.lines().nth(1).unwrap().to_string();
+    std::fs::write(
+        &cams,
+        s.replace(
+            &line,
+            &(line.replace("PINHOLE", "OPENCV") + " 0.1 0.01 0 0"),
+        ),
+    )
+    .unwrap();
+    expect_error(&d, "cameras.txt", "OPENCV");
+    cases += 1;
+
+    // 18. COLMAP image using an undefined camera (image count ≠ camera count).
+    let d = room("bad-colmap-count", SceneFormat::Colmap);
+    let cams = d.join("sparse/0/cameras.txt");
+    let s = std::fs::read_to_string(&cams).unwrap();
+    let last = s.lines().last().unwrap().to_string();
+    std::fs::write(&cams, s.replace(&(last + "\n"), "")).unwrap();
+    expect_error(&d, "images.txt", "does not define");
+    cases += 1;
+
+    // 19. SIBR: image count ≠ camera count.
+    let d = room("bad-sibr-count", SceneFormat::Sibr);
+    edit(&d.join("cameras/bundle.out"), "\n4 0\n", "\n5 0\n");
+    expect_error(&d, "bundle.out", "5 cameras but 4 images");
+    cases += 1;
+
+    // 20. SIBR: radial distortion.
+    let d = room("bad-sibr-distortion", SceneFormat::Sibr);
+    let b = d.join("cameras/bundle.out");
+    let s = std::fs::read_to_string(&b).unwrap();
+    let l = s.lines().nth(2).unwrap().to_string();
+    std::fs::write(&b, s.replacen(&l, &l.replace(" 0 0", " 0.05 0"), 1)).unwrap();
+    expect_error(&d, "bundle.out", "radial distortion");
+    cases += 1;
+
+    // 21. A rotation that is not a rotation.
+    let d = room("bad-rotation", j);
+    let s = std::fs::read_to_string(d.join("scene.json")).unwrap();
+    let r = s.find("\"rotation\": [").unwrap() + 13;
+    let r = r + s[r..].find('[').unwrap() + 1;
+    let e = r + s[r..].find(',').unwrap();
+    std::fs::write(d.join("scene.json"), format!("{}3.0{}", &s[..r], &s[e..])).unwrap();
+    expect_error(&d, "scene.json", "not a proper rotation");
+    cases += 1;
+
+    assert!(cases >= 15);
+}
+
+#[test]
+fn the_bundled_scene_loads() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tiny_room");
+    let s = Scene::load(&dir).unwrap();
+    s.check_images().unwrap();
+    assert!(s.views.len() >= 4);
+    assert!(!s.lights.is_empty() && !s.presets.is_empty());
+}

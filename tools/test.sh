@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# Sets the machine up (tools/setup.sh) and runs the whole test suite on the Vulkan device
+# (lavapipe here), with the Khronos validation layer on: any validation error fails a test.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash tools/setup.sh
+cargo test --workspace "$@"
