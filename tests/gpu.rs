@@ -366,3 +366,85 @@ fn timestamps_measure_a_dispatch() {
     assert!(t[0].1.is_finite() && t[0].1 >= 0.0, "{t:?}");
     common::assert_no_validation_errors(&gpu);
 }
+
+#[test]
+fn gemm_portable_matches_cpu_and_coop_matrix_module_is_built() {
+    use half::f16;
+    use relit_engine::net::{select_backend, Backend, Gemm};
+    let gpu = common::gpu();
+    let (m, n, k) = (32u32, 48u32, 80u32);
+    let mut rng = Rng::new(17);
+    let a: Vec<f16> = (0..m * k)
+        .map(|_| f16::from_f32(rng.range(-1.0, 1.0)))
+        .collect();
+    let b: Vec<f16> = (0..k * n)
+        .map(|_| f16::from_f32(rng.range(-1.0, 1.0)))
+        .collect();
+    let gemm = Gemm::with_backend(&gpu, Backend::Portable).unwrap();
+    let c = gemm.run(&a, &b, m, n, k).unwrap();
+    for i in 0..m as usize {
+        for j in 0..n as usize {
+            let r: f64 = (0..k as usize)
+                .map(|q| a[i * k as usize + q].to_f64() * b[q * n as usize + j].to_f64())
+                .sum();
+            // fp32 accumulation of 80 products of fp16 inputs: 1e-4 absolute.
+            assert!(
+                (c[i * n as usize + j] as f64 - r).abs() < 1e-4,
+                "c[{i},{j}] = {} vs {r}",
+                c[i * n as usize + j]
+            );
+        }
+    }
+    assert!(
+        gemm.run(&a, &b, 30, n, k).is_err(),
+        "sizes must be tile multiples"
+    );
+
+    // The cooperative-matrix module is compiled, carries the capability (OpCapability
+    // CooperativeMatrixKHR = 6022), and takes its twin's layout.
+    let words = gpu::spirv("net/gemm_cm.comp").unwrap();
+    assert!(words
+        .windows(2)
+        .any(|w| w[0] == (2 << 16 | 17) && w[1] == 6022));
+    let (cm, portable) = (
+        gpu::reflect("net/gemm_cm.comp").unwrap(),
+        gpu::reflect("net/gemm.comp").unwrap(),
+    );
+    assert_eq!(cm.sets, portable.sets);
+    assert_eq!(cm.push_size, 12);
+
+    // Selection: the coop-matrix path only with a fitting shape and 32-wide subgroups.
+    let mut caps = gpu.caps.clone();
+    caps.coop_matrix.clear();
+    assert_eq!(select_backend(&caps), Backend::Portable);
+    let shape = |c| gpu::CoopMatrixShape {
+        m: 16,
+        n: 16,
+        k: 16,
+        a: vk::ComponentTypeKHR::FLOAT16,
+        b: vk::ComponentTypeKHR::FLOAT16,
+        c,
+        result: c,
+        scope: vk::ScopeKHR::SUBGROUP,
+    };
+    caps.coop_matrix.push(shape(vk::ComponentTypeKHR::FLOAT16));
+    caps.subgroup_size = 32;
+    assert_eq!(
+        select_backend(&caps),
+        Backend::Portable,
+        "fp16 accumulators do not fit"
+    );
+    caps.coop_matrix.push(shape(vk::ComponentTypeKHR::FLOAT32));
+    assert_eq!(select_backend(&caps), Backend::CoopMatrix);
+    caps.subgroup_size = 8;
+    assert_eq!(select_backend(&caps), Backend::Portable);
+    // On this device the selected backend runs.
+    let sel = Gemm::new(&gpu).unwrap();
+    if gpu.caps.coop_matrix.is_empty() {
+        assert_eq!(sel.backend, Backend::Portable);
+    }
+    if sel.backend == Backend::Portable {
+        assert_eq!(sel.run(&a, &b, m, n, k).unwrap(), c);
+    }
+    common::assert_no_validation_errors(&gpu);
+}

@@ -6,11 +6,13 @@
 //! - [`scene`]: scene formats (Relit's `scene.json`, COLMAP text, SIBR/Bundler), meshes, images.
 //! - [`raster`]: the G-buffer of a mesh seen from a camera.
 //! - [`trace`]: generic ray casting with ray queries (tests, `relit bench rays`).
+//! - [`net`]: the network's kernels (§5.1), each with a cooperative-matrix and a portable backend.
 //! - [`cpu`]: CPU references used by the tests and by tools.
 
 pub mod cpu;
 pub mod error;
 pub mod gpu;
+pub mod net;
 pub mod raster;
 pub mod scene;
 pub mod trace;

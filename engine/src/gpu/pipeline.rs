@@ -516,6 +516,23 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Binds and dispatches exactly `groups` workgroups (tile-based kernels).
+    pub fn dispatch_groups(
+        &self,
+        cmd: vk::CommandBuffer,
+        binds: &[(u32, Bind)],
+        push: &[u8],
+        groups: (u32, u32, u32),
+    ) -> Result<()> {
+        self.bind(cmd, binds, push)?;
+        unsafe {
+            self.gpu
+                .device
+                .cmd_dispatch(cmd, groups.0, groups.1, groups.2)
+        };
+        Ok(())
+    }
+
     /// Binds and dispatches enough workgroups to cover `threads` invocations.
     pub fn dispatch(
         &self,
