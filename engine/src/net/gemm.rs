@@ -42,7 +42,7 @@ impl Gemm {
 
     /// `a` is m×k, `b` is k×n, row-major; all sizes multiples of [`TILE`]. Returns m×n in f32.
     pub fn run(&self, a: &[f16], b: &[f16], m: u32, n: u32, k: u32) -> Result<Vec<f32>> {
-        if m % TILE != 0 || n % TILE != 0 || k % TILE != 0 {
+        if ![m, n, k].iter().all(|s| s.is_multiple_of(TILE)) {
             return Err(Error::Other(format!(
                 "gemm {m}x{n}x{k}: sizes must be multiples of {TILE}"
             )));
