@@ -206,6 +206,7 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
         mesh: Mesh::load(&mesh_path)?,
         mesh_path,
         true_mesh_path: None,
+        synthetic: None,
         lights,
         presets,
     };

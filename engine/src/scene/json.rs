@@ -25,6 +25,77 @@ pub(crate) struct SceneDoc {
     pub lights: Vec<LightDoc>,
     #[serde(default)]
     pub presets: Vec<PresetDoc>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub synthetic: Option<Synthetic>,
+}
+
+/// What a synthetic scene adds to the format (`tools/scenegen` writes it, `tools/groundtruth`
+/// renders it): the true objects and materials, the lighting conditions, the test views and
+/// where their ground truth lives. Real captures have none of this.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Synthetic {
+    pub seed: u64,
+    /// The true geometry, one mesh per material assignment.
+    pub objects: Vec<ObjectDoc>,
+    pub materials: BTreeMap<String, MaterialDoc>,
+    /// Lighting conditions: the original one and one per extra light, each a set of lights at
+    /// intensity 1 (§6). Their renders mix linearly.
+    pub conditions: Vec<ConditionDoc>,
+    /// Novel views sampled along the test path, with ground truth but no input image.
+    pub test_views: Vec<TestViewDoc>,
+    /// The test camera path (keyframes), relative to the scene directory.
+    pub test_path: String,
+    /// Ground truth directory: `<dir>/<condition>/<view>.{total,diffuse,glossy}.exr` and
+    /// `<dir>/aov/<view>.{albedo,normal,depth}.exr`.
+    pub ground_truth: String,
+    /// How the proxy mesh was degraded from the true one.
+    pub proxy: serde_json::Value,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectDoc {
+    pub name: String,
+    pub mesh: String,
+    pub material: String,
+}
+
+/// `kind`: "diffuse" (Lambertian), "plastic" (Lambertian base under a GGX dielectric coat) or
+/// "conductor" (GGX metal). `albedo` is the diffuse reflectance (multiplied by the texture when
+/// one is given); `specular` tints the conductor; `roughness` is GGX alpha.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialDoc {
+    pub kind: String,
+    pub albedo: [f32; 3],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo_texture: Option<String>,
+    /// Texture repeats per metre of surface (texture coordinates are in metres).
+    #[serde(default = "one")]
+    pub texture_scale: f32,
+    #[serde(default)]
+    pub roughness: f32,
+    #[serde(default)]
+    pub specular: [f32; 3],
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConditionDoc {
+    pub name: String,
+    pub lights: Vec<String>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TestViewDoc {
+    pub name: String,
+    pub camera: CameraDoc,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -44,9 +115,9 @@ pub(crate) struct ViewDoc {
     pub camera: CameraDoc,
 }
 
-#[derive(Serialize, Deserialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(crate) struct CameraDoc {
+pub struct CameraDoc {
     pub width: u32,
     pub height: u32,
     pub fx: f32,
@@ -100,6 +171,7 @@ pub(crate) struct PresetDoc {
 }
 
 impl CameraDoc {
+    /// The camera this document describes; errors name `file` and `view`.
     pub fn to_camera(&self, file: &Path, view: &str) -> Result<Camera> {
         let bad = |m: &str| Error::input(file, format!("view {view}: camera: {m}"));
         let position = Vec3::from(self.position);
@@ -269,6 +341,7 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
         true_mesh_path: doc.true_mesh.as_ref().map(|m| dir.join(m)),
         lights: doc.lights.iter().map(LightDoc::to_light).collect(),
         presets: presets(&doc.presets),
+        synthetic: doc.synthetic,
     };
     scene.validate(&file)?;
     Ok(scene)
@@ -319,6 +392,7 @@ pub fn write(dir: &Path, scene: &Scene) -> Result<()> {
             .collect(),
         lights: scene.lights.iter().map(LightDoc::from_light).collect(),
         presets: preset_docs(&scene.presets),
+        synthetic: scene.synthetic.clone(),
     };
     let text = serde_json::to_string_pretty(&doc).map_err(|e| Error::Other(e.to_string()))?;
     super::write_atomic(&dir.join(SCENE_FILE), text.as_bytes())

@@ -17,7 +17,9 @@ use glam::Vec3;
 
 pub use camera::{Camera, GpuCamera};
 pub use image::RgbImage;
-pub use json::SCENE_FILE;
+pub use json::{
+    CameraDoc, ConditionDoc, MaterialDoc, ObjectDoc, Synthetic, TestViewDoc, SCENE_FILE,
+};
 pub use mesh::Mesh;
 
 use crate::error::{Error, Result};
@@ -115,6 +117,8 @@ pub struct Scene {
     pub true_mesh_path: Option<PathBuf>,
     pub lights: Vec<Light>,
     pub presets: Vec<LightingPreset>,
+    /// Ground-truth description of a synthetic scene (absent for real captures).
+    pub synthetic: Option<Synthetic>,
 }
 
 impl Scene {

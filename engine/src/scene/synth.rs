@@ -308,6 +308,7 @@ pub fn write_room(dir: &Path, format: SceneFormat, opts: &SynthOptions) -> Resul
         mesh,
         mesh_path,
         true_mesh_path: None,
+        synthetic: None,
         lights,
         presets,
     };
