@@ -407,10 +407,22 @@ fn malformed_inputs_get_clear_errors() {
 }
 
 #[test]
-fn the_bundled_scene_loads() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/tiny_room");
-    let s = Scene::load(&dir).unwrap();
-    s.check_images().unwrap();
-    assert!(s.views.len() >= 4);
-    assert!(!s.lights.is_empty() && !s.presets.is_empty());
+fn the_bundled_scenes_load() {
+    for name in ["tiny_room", "demo_room"] {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes")
+            .join(name);
+        let s = Scene::load(&dir).unwrap();
+        s.check_images().unwrap();
+        assert!(s.views.len() >= 4);
+        assert!(!s.lights.is_empty() && !s.presets.is_empty());
+    }
+    let demo =
+        Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/demo_room")).unwrap();
+    let p = &demo.presets[0];
+    assert!(
+        p.dim > 0.0 && p.intensities.len() == 1,
+        "demo preset: one added light, original dimmed"
+    );
+    assert!((24..=40).contains(&demo.views.len()));
 }

@@ -6,4 +6,4 @@ cd "$(dirname "$0")/.."
 bash tools/setup.sh
 cargo build --release --bin relit
 ./target/release/relit info
-./target/release/relit scene check scenes/tiny_room
+./target/release/relit scene check scenes/demo_room

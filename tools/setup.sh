@@ -36,8 +36,9 @@ else
   fi
 fi
 
-# Optional tools used by `relit fly` (video) and the viewer test (Xvfb); cheap, so always present.
-for p in ffmpeg xvfb; do
+# ffmpeg (`relit fly` videos), Xvfb (viewer test), libllvm19 (Mitsuba's LLVM backend for the
+# ground truth: Dr.Jit crashes with Debian's default LLVM 15).
+for p in ffmpeg xvfb libllvm19; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
     NEED_EXTRA="${NEED_EXTRA:-} $p"
   fi
@@ -45,6 +46,12 @@ done
 if [ -n "${NEED_EXTRA:-}" ]; then
   [ -n "$(find /var/lib/apt/lists -name '*_Packages' -newer /etc/os-release 2>/dev/null | head -1)" ] || $SUDO apt-get update -qq
   $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $NEED_EXTRA
+fi
+
+# Ground-truth renderer (tools/groundtruth): Mitsuba 3 and numpy from PyPI.
+here="$(cd "$(dirname "$0")" && pwd)"
+if ! python3 -c "import mitsuba, numpy" >/dev/null 2>&1; then
+  python3 -m pip install -q --root-user-action=ignore -r "$here/groundtruth/requirements.txt"
 fi
 
 if ! command -v cargo >/dev/null 2>&1; then

@@ -5,3 +5,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
 cargo test --workspace "$@"
+# The ground-truth renderer's own tests (they use the scenegen binary cargo just built).
+(cd tools/groundtruth && python3 -m unittest -v test_groundtruth)

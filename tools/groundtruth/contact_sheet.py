@@ -50,7 +50,7 @@ def depth_of(scene_dir, mesh, cam):
     w, h = cam["width"], cam["height"]
     xs = (np.arange(w) + 0.5 - cam["cx"]) / cam["fx"]
     ys = (np.arange(h) + 0.5 - cam["cy"]) / cam["fy"]
-    return img / np.sqrt(xs[None, :] ** 2 + ys[:, None] ** 2 + 1.0)
+    return np.where(img > 0, img / np.sqrt(xs[None, :] ** 2 + ys[:, None] ** 2 + 1.0) + render.NEAR_CLIP, 0.0)
 
 
 def grid(tiles, cols, pad=4):

@@ -47,6 +47,8 @@ VARIANT = "llvm_ad_rgb" if _llvm else "scalar_rgb"
 mi.set_variant(VARIANT)
 
 MAX_DEPTH = 8
+# Mitsuba starts camera rays on the near plane, so depth AOVs measure from there: add it back.
+NEAR_CLIP = 0.01
 
 
 class SceneError(Exception):
@@ -141,7 +143,7 @@ def sensor_dict(cam, where, spp, aov=False):
                else {"type": "independent", "sample_count": spp})
     return {
         "type": "perspective", "fov": fov, "fov_axis": "x", "to_world": to_world,
-        "near_clip": 0.01, "far_clip": 1000.0,
+        "near_clip": NEAR_CLIP, "far_clip": 1000.0,
         "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"},
                  "pixel_format": "rgb"},
         "sampler": sampler,
@@ -225,12 +227,13 @@ def mitsuba_scene(scene_dir, doc, where, lit, cameras, spp, aov=False, intensiti
             raise SceneError(f"{where}: object {o['name']}: unknown material {o['material']!r}")
         d["obj_" + o["name"]] = {"type": "ply", "filename": mesh, "face_normals": True,
                                  "bsdf": {"type": "ref", "id": "mat_" + o["material"]}}
+    # Only the lit lights exist: a light that is off is not in the capture (the added lights are
+    # virtual, §4.1.3). The one light's shape can shadow another's light, which makes sums of
+    # conditions differ from a joint render by that (small) occlusion only.
     for l in doc.get("lights", []):
-        rad = None
         if l["name"] in lit:
             k = (intensities or {}).get(l["name"], 1.0)
-            rad = [k * c for c in l["radiance"]]
-        d["light_" + l["name"]] = light_shape(l, rad)
+            d["light_" + l["name"]] = light_shape(l, [k * c for c in l["radiance"]])
     for i, (name, cam) in enumerate(cameras):
         d[f"sensor_{i:04d}"] = sensor_dict(cam, f"{where}: view {name}", spp, aov)
     return mi.load_dict(d)
@@ -291,7 +294,8 @@ def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed
             norm = np.sqrt(xs[None, :] ** 2 + ys[:, None] ** 2 + 1.0)
             write_exr(os.path.join(gt, "aov", f"{name}.albedo.exr"), img[:, :, 0:3])
             write_exr(os.path.join(gt, "aov", f"{name}.normal.exr"), img[:, :, 3:6])
-            write_exr(os.path.join(gt, "aov", f"{name}.depth.exr"), (img[:, :, 6] / norm)[:, :, None])
+            z = np.where(img[:, :, 6] > 0, img[:, :, 6] / norm + NEAR_CLIP, 0.0)
+            write_exr(os.path.join(gt, "aov", f"{name}.depth.exr"), z[:, :, None])
     if only in ("all", "inputs"):
         diffuse = mi.load_dict({"type": "diffuse_first_bounce", "max_depth": MAX_DEPTH})
         path = mi.load_dict({"type": "path", "max_depth": MAX_DEPTH})

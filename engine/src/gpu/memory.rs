@@ -242,7 +242,7 @@ impl Buffer {
             let region = [vk::BufferCopy::default().size(bytes.len() as u64)];
             self.gpu
                 .device
-                .cmd_copy_buffer(cmd, staging.raw, self.raw, &region);
+                .cmd_copy_buffer(cmd, staging.0.raw, self.raw, &region);
         })
     }
 
@@ -270,7 +270,7 @@ impl Buffer {
             let region = [vk::BufferCopy::default().src_offset(offset).size(len)];
             self.gpu
                 .device
-                .cmd_copy_buffer(cmd, self.raw, staging.raw, &region);
+                .cmd_copy_buffer(cmd, self.raw, staging.0.raw, &region);
         })?;
         Ok(staging.read(len as usize))
     }
@@ -302,74 +302,35 @@ impl Drop for Buffer {
 }
 
 /// A host-visible transfer buffer: always mapped, whatever `force_staging` says.
-struct Staging {
-    gpu: Arc<Gpu>,
-    raw: vk::Buffer,
-    alloc: Option<Allocation>,
-}
+struct Staging(Buffer);
 
 impl Staging {
     fn new(gpu: &Arc<Gpu>, size: u64, location: MemoryLocation) -> Result<Staging> {
-        let d = &gpu.device;
-        let raw = unsafe {
-            d.create_buffer(
-                &vk::BufferCreateInfo::default()
-                    .size(size.max(4))
-                    .usage(vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST),
-                None,
-            )
-        }
-        .vk("create staging buffer")?;
-        let req = unsafe { d.get_buffer_memory_requirements(raw) };
-        let alloc = match gpu.allocate("staging", req, location, true) {
-            Ok(a) => a,
-            Err(e) => {
-                unsafe { d.destroy_buffer(raw, None) };
-                return Err(e);
-            }
-        };
-        if let Err(e) = unsafe { d.bind_buffer_memory(raw, alloc.memory(), alloc.offset()) } {
-            unsafe { d.destroy_buffer(raw, None) };
-            gpu.free(alloc);
-            return Err(Error::Vk {
-                what: "bind staging memory",
-                result: e,
-            });
-        }
-        Ok(Staging {
-            gpu: gpu.clone(),
-            raw,
-            alloc: Some(alloc),
-        })
+        let b = Buffer::new(
+            gpu,
+            "staging",
+            size,
+            vk::BufferUsageFlags::empty(),
+            location,
+        )?;
+        Ok(Staging(b))
+    }
+
+    fn ptr(&self) -> *mut u8 {
+        let a = self.0.alloc.as_ref().expect("allocation");
+        a.mapped_ptr()
+            .expect("staging memory is host-visible")
+            .as_ptr() as *mut u8
     }
 
     fn write(&self, bytes: &[u8]) {
-        let a = self.alloc.as_ref().expect("allocation");
-        let p = a
-            .mapped_ptr()
-            .expect("staging memory is host-visible")
-            .as_ptr() as *mut u8;
-        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), p, bytes.len()) };
+        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), self.ptr(), bytes.len()) };
     }
 
     fn read(&self, len: usize) -> Vec<u8> {
-        let a = self.alloc.as_ref().expect("allocation");
-        let p = a
-            .mapped_ptr()
-            .expect("staging memory is host-visible")
-            .as_ptr() as *const u8;
         let mut out = vec![0u8; len];
-        unsafe { std::ptr::copy_nonoverlapping(p, out.as_mut_ptr(), len) };
+        unsafe { std::ptr::copy_nonoverlapping(self.ptr(), out.as_mut_ptr(), len) };
         out
-    }
-}
-
-impl Drop for Staging {
-    fn drop(&mut self) {
-        unsafe { self.gpu.device.destroy_buffer(self.raw, None) };
-        if let Some(a) = self.alloc.take() {
-            self.gpu.free(a);
-        }
     }
 }
 
@@ -503,7 +464,7 @@ impl Image {
             let region = [self.copy_region()];
             self.gpu.device.cmd_copy_buffer_to_image(
                 cmd,
-                staging.raw,
+                staging.0.raw,
                 self.raw,
                 vk::ImageLayout::TRANSFER_DST_OPTIMAL,
                 &region,
@@ -543,7 +504,7 @@ impl Image {
                 cmd,
                 self.raw,
                 vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-                staging.raw,
+                staging.0.raw,
                 &region,
             );
             image_barrier(

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Quat, Vec3};
 
-use super::{json, Camera, Mesh, Scene, SceneFormat, View};
+use super::{json, Camera, Scene, SceneFormat, View};
 use crate::error::{Error, Result};
 
 pub(crate) const MESH_CANDIDATES: &[&str] = &[
@@ -197,21 +197,7 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
             },
         });
     }
-    let mesh_path = super::find_mesh(dir, MESH_CANDIDATES)?;
-    let (lights, presets) = json::load_sidecar(dir)?;
-    let scene = Scene {
-        root: dir.to_path_buf(),
-        format: SceneFormat::Colmap,
-        views,
-        mesh: Mesh::load(&mesh_path)?,
-        mesh_path,
-        true_mesh_path: None,
-        synthetic: None,
-        lights,
-        presets,
-    };
-    scene.validate(&img_file)?;
-    Ok(scene)
+    super::capture_scene(dir, SceneFormat::Colmap, views, MESH_CANDIDATES, &img_file)
 }
 
 /// Writes `sparse/0/{cameras,images}.txt` (one PINHOLE camera per view) for `scene`, whose

@@ -201,6 +201,37 @@ impl Scene {
                 return Err(Error::input(file, format!("light {}: zero area", l.name)));
             }
         }
+        if let Some(syn) = &self.synthetic {
+            for c in &syn.conditions {
+                for l in &c.lights {
+                    if !self.lights.iter().any(|x| &x.name == l) {
+                        return Err(Error::input(
+                            file,
+                            format!("synthetic.conditions: {} names light \"{l}\", which the scene does not have", c.name),
+                        ));
+                    }
+                }
+            }
+            for o in &syn.objects {
+                if !syn.materials.contains_key(&o.material) {
+                    return Err(Error::input(
+                        file,
+                        format!(
+                            "synthetic.objects: {} uses material \"{}\", which is not defined",
+                            o.name, o.material
+                        ),
+                    ));
+                }
+            }
+            for t in &syn.test_views {
+                t.camera.to_camera(file, &t.name)?.validate().map_err(|m| {
+                    Error::input(
+                        file,
+                        format!("synthetic.test_views: {}: camera: {m}", t.name),
+                    )
+                })?;
+            }
+        }
         for p in &self.presets {
             if !(0.0..=1.0).contains(&p.dim) {
                 return Err(Error::input(
@@ -283,6 +314,32 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 pub(crate) fn read_text(path: &Path) -> Result<String> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     String::from_utf8(bytes).map_err(|_| Error::input(path, "file is not valid UTF-8 text"))
+}
+
+/// A COLMAP or SIBR capture from its views: the mesh beside them, lights and presets from the
+/// `lights.json` sidecar, validated against `file` (the camera file, named in errors).
+pub(crate) fn capture_scene(
+    dir: &Path,
+    format: SceneFormat,
+    views: Vec<View>,
+    mesh_candidates: &[&str],
+    file: &Path,
+) -> Result<Scene> {
+    let mesh_path = find_mesh(dir, mesh_candidates)?;
+    let (lights, presets) = json::load_sidecar(dir)?;
+    let scene = Scene {
+        root: dir.to_path_buf(),
+        format,
+        views,
+        mesh: Mesh::load(&mesh_path)?,
+        mesh_path,
+        true_mesh_path: None,
+        synthetic: None,
+        lights,
+        presets,
+    };
+    scene.validate(file)?;
+    Ok(scene)
 }
 
 /// The mesh file of a capture: the first of `candidates` (relative to `dir`) that exists.

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Vec3};
 
-use super::{json, Camera, Mesh, Scene, SceneFormat, View};
+use super::{json, Camera, Scene, SceneFormat, View};
 use crate::error::{Error, Result};
 
 const MESH_CANDIDATES: &[&str] = &[
@@ -175,21 +175,7 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
             },
         });
     }
-    let mesh_path = super::find_mesh(dir, MESH_CANDIDATES)?;
-    let (lights, presets) = json::load_sidecar(dir)?;
-    let scene = Scene {
-        root: dir.to_path_buf(),
-        format: SceneFormat::Sibr,
-        views,
-        mesh: Mesh::load(&mesh_path)?,
-        mesh_path,
-        true_mesh_path: None,
-        synthetic: None,
-        lights,
-        presets,
-    };
-    scene.validate(&file)?;
-    Ok(scene)
+    super::capture_scene(dir, SceneFormat::Sibr, views, MESH_CANDIDATES, &file)
 }
 
 /// Writes `cameras/bundle.out` and `scene_metadata.txt` for `scene` (square pixels, principal

@@ -12,7 +12,10 @@ use clap::{Parser, Subcommand};
 use relit_scenegen::room::RoomOptions;
 
 #[derive(Parser)]
-#[command(name = "scenegen", about = "Procedural indoor scenes with ground truth for Relit")]
+#[command(
+    name = "scenegen",
+    about = "Procedural indoor scenes with ground truth for Relit"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -72,7 +75,9 @@ enum Cmd {
 }
 
 fn parse_res(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once('x').ok_or_else(|| format!("\"{s}\": expected WxH"))?;
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| format!("\"{s}\": expected WxH"))?;
     match (w.parse::<u32>(), h.parse::<u32>()) {
         (Ok(w), Ok(h)) if w > 0 && h > 0 && w <= 16384 && h <= 16384 => Ok((w, h)),
         _ => Err(format!("\"{s}\": expected WxH with sides 1..=16384")),
@@ -115,7 +120,13 @@ fn main() -> Result<()> {
                 s.lights.len()
             );
         }
-        Cmd::Batch { out, count, seed, spp, args } => {
+        Cmd::Batch {
+            out,
+            count,
+            seed,
+            spp,
+            args,
+        } => {
             let bar = indicatif::ProgressBar::new(count);
             bar.set_style(
                 indicatif::ProgressStyle::with_template(

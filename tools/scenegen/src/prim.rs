@@ -9,7 +9,11 @@ pub enum Prim {
     /// Axis-aligned box; `inward` faces point inside (the room shell).
     Box { lo: Vec3, hi: Vec3, inward: bool },
     /// Vertical cylinder standing on `base`, with caps.
-    Cylinder { base: Vec3, radius: f32, height: f32 },
+    Cylinder {
+        base: Vec3,
+        radius: f32,
+        height: f32,
+    },
     /// One-sided parallelogram facing `u × v`.
     Quad { corner: Vec3, u: Vec3, v: Vec3 },
 }
@@ -34,8 +38,12 @@ impl Prim {
             ),
             Prim::Quad { corner, u, v } => {
                 let ps = [*corner, *corner + *u, *corner + *v, *corner + *u + *v];
-                let lo = ps.iter().fold(Vec2::splat(f32::MAX), |a, p| a.min(Vec2::new(p.x, p.z)));
-                let hi = ps.iter().fold(Vec2::splat(f32::MIN), |a, p| a.max(Vec2::new(p.x, p.z)));
+                let lo = ps
+                    .iter()
+                    .fold(Vec2::splat(f32::MAX), |a, p| a.min(Vec2::new(p.x, p.z)));
+                let hi = ps
+                    .iter()
+                    .fold(Vec2::splat(f32::MIN), |a, p| a.max(Vec2::new(p.x, p.z)));
                 (lo, hi)
             }
         }
@@ -179,11 +187,19 @@ pub fn tessellate(p: &Prim, edge: f32) -> TriMesh {
     match p {
         Prim::Box { lo, hi, inward } => {
             for (c, u, v) in box_faces(*lo, *hi) {
-                m.append(&if *inward { grid(c, v, u, edge) } else { grid(c, u, v, edge) });
+                m.append(&if *inward {
+                    grid(c, v, u, edge)
+                } else {
+                    grid(c, u, v, edge)
+                });
             }
         }
         Prim::Quad { corner, u, v } => m = grid(*corner, *u, *v, edge),
-        Prim::Cylinder { base, radius, height } => {
+        Prim::Cylinder {
+            base,
+            radius,
+            height,
+        } => {
             let seg = ((std::f32::consts::TAU * radius / edge).ceil() as u32).clamp(12, 256);
             let rows = ((height / edge).ceil() as u32).max(1);
             let ring = |k: u32| {
@@ -196,7 +212,10 @@ pub fn tessellate(p: &Prim, edge: f32) -> TriMesh {
                     let y = height * j as f32 / rows as f32;
                     m.positions.push(*base + d * *radius + Vec3::Y * y);
                     m.normals.push(d);
-                    m.uvs.push(Vec2::new(k as f32 / seg as f32 * std::f32::consts::TAU * radius, y));
+                    m.uvs.push(Vec2::new(
+                        k as f32 / seg as f32 * std::f32::consts::TAU * radius,
+                        y,
+                    ));
                 }
             }
             let row = seg + 1;

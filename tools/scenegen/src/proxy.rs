@@ -61,7 +61,11 @@ impl ProxyParams {
 /// Smooth 3D value noise in [-1, 1] from a hashed lattice (no tables: any seed, any extent).
 pub fn noise3(p: Vec3, seed: u64) -> f32 {
     let h = |x: i64, y: i64, z: i64| {
-        let mut r = Rng::new(seed ^ (x as u64).wrapping_mul(0x9E37_79B9) ^ (y as u64).wrapping_mul(0x85EB_CA6B) ^ (z as u64).wrapping_mul(0xC2B2_AE35));
+        let mut r = Rng::new(
+            seed ^ (x as u64).wrapping_mul(0x9E37_79B9)
+                ^ (y as u64).wrapping_mul(0x85EB_CA6B)
+                ^ (z as u64).wrapping_mul(0xC2B2_AE35),
+        );
         r.f32() * 2.0 - 1.0
     };
     let f = p.floor();
@@ -83,7 +87,12 @@ pub fn degrade(o: &Object, p: &ProxyParams, rng: &mut Rng) -> TriMesh {
     }
     let mut m = tessellate(&o.prim, p.edge);
     // Rounded edges: map each point of the box onto the rounded box of radius r.
-    if let Prim::Box { lo, hi, inward: false } = o.prim {
+    if let Prim::Box {
+        lo,
+        hi,
+        inward: false,
+    } = o.prim
+    {
         let r = p.corner_radius.min(0.45 * (hi - lo).min_element());
         let (ilo, ihi) = (lo + Vec3::splat(r), hi - Vec3::splat(r));
         for (q, n) in m.positions.iter_mut().zip(m.normals.iter_mut()) {
@@ -100,10 +109,15 @@ pub fn degrade(o: &Object, p: &ProxyParams, rng: &mut Rng) -> TriMesh {
         }
         *q += *n * d;
     }
-    if matches!(o.surface, Surface::Textureless | Surface::Glossy) && !m.triangles.is_empty() && rng.f32() < p.hole_prob {
+    if matches!(o.surface, Surface::Textureless | Surface::Glossy)
+        && !m.triangles.is_empty()
+        && rng.f32() < p.hole_prob
+    {
         let c = m.centroid((rng.next_u64() % m.triangles.len() as u64) as usize);
         let r = rng.range(p.hole_radius.0, p.hole_radius.1);
-        let keep: Vec<bool> = (0..m.triangles.len()).map(|t| (m.centroid(t) - c).length() > r).collect();
+        let keep: Vec<bool> = (0..m.triangles.len())
+            .map(|t| (m.centroid(t) - c).length() > r)
+            .collect();
         m = m.filter_triangles(|t| keep[t]);
     }
     m

@@ -60,7 +60,13 @@ pub struct RoomOptions {
 
 impl Default for RoomOptions {
     fn default() -> Self {
-        RoomOptions { views: 32, width: 256, height: 192, extra_lights: 6, test_views: 8 }
+        RoomOptions {
+            views: 32,
+            width: 256,
+            height: 192,
+            extra_lights: 6,
+            test_views: 8,
+        }
     }
 }
 
@@ -85,7 +91,15 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
-    fn material(&mut self, name: &str, kind: &str, albedo: Vec3, tex: Option<(Kind, f32)>, roughness: f32, specular: Vec3) -> String {
+    fn material(
+        &mut self,
+        name: &str,
+        kind: &str,
+        albedo: Vec3,
+        tex: Option<(Kind, f32)>,
+        roughness: f32,
+        specular: Vec3,
+    ) -> String {
         let (texture, albedo, scale) = match tex {
             Some((k, scale)) => {
                 let (img, mean) = texture::make(k, albedo, self.rng);
@@ -101,22 +115,34 @@ impl Builder<'_> {
             roughness,
             specular: specular.to_array(),
         };
-        self.materials.insert(name.into(), Material { doc, texture });
+        self.materials
+            .insert(name.into(), Material { doc, texture });
         name.into()
     }
 
     fn add(&mut self, name: &str, prim: Prim, material: &str, surface: Surface) {
-        self.objects.push(Object { name: name.into(), prim, material: material.into(), surface, shell: false });
+        self.objects.push(Object {
+            name: name.into(),
+            prim,
+            material: material.into(),
+            surface,
+            shell: false,
+        });
     }
 
     fn free(&self, lo: Vec2, hi: Vec2) -> bool {
-        self.taken.iter().all(|(a, b)| hi.x + 0.15 < a.x || lo.x > b.x + 0.15 || hi.y + 0.15 < a.y || lo.y > b.y + 0.15)
+        self.taken.iter().all(|(a, b)| {
+            hi.x + 0.15 < a.x || lo.x > b.x + 0.15 || hi.y + 0.15 < a.y || lo.y > b.y + 0.15
+        })
     }
 
     /// A free spot for a `w × d` footprint inside `[lo, hi]`.
     fn place(&mut self, lo: Vec2, hi: Vec2, w: f32, d: f32) -> Option<Vec2> {
         for _ in 0..40 {
-            let p = Vec2::new(self.rng.range(lo.x, hi.x - w), self.rng.range(lo.y, hi.y - d));
+            let p = Vec2::new(
+                self.rng.range(lo.x, hi.x - w),
+                self.rng.range(lo.y, hi.y - d),
+            );
             if self.free(p, p + Vec2::new(w, d)) {
                 self.taken.push((p, p + Vec2::new(w, d)));
                 return Some(p);
@@ -127,7 +153,11 @@ impl Builder<'_> {
 }
 
 fn boxp(lo: Vec3, hi: Vec3) -> Prim {
-    Prim::Box { lo, hi, inward: false }
+    Prim::Box {
+        lo,
+        hi,
+        inward: false,
+    }
 }
 
 /// Radiance of an emitter of `area` so that it emits `power` watts (Lambertian, one-sided):
@@ -139,32 +169,126 @@ fn radiance_for(power: f32, area: f32, tint: Vec3) -> [f32; 3] {
 
 pub fn generate(seed: u64, o: &RoomOptions) -> Room {
     let mut rng = Rng::new(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0x5EED);
-    let size = Vec3::new(rng.range(3.8, 5.5), rng.range(2.45, 2.9), rng.range(3.2, 4.8));
+    let size = Vec3::new(
+        rng.range(3.8, 5.5),
+        rng.range(2.45, 2.9),
+        rng.range(3.2, 4.8),
+    );
     let (hx, hz) = (size.x / 2.0, size.z / 2.0);
-    let mut b = Builder { rng: &mut rng, objects: vec![], materials: BTreeMap::new(), taken: vec![] };
+    let mut b = Builder {
+        rng: &mut rng,
+        objects: vec![],
+        materials: BTreeMap::new(),
+        taken: vec![],
+    };
 
     // Shell: floor, ceiling, walls as separate inward quads so each has its own material.
-    let wall_c = Vec3::new(b.rng.range(0.45, 0.85), b.rng.range(0.45, 0.85), b.rng.range(0.45, 0.85));
-    let wall = b.material("wall", "diffuse", wall_c, Some((Kind::Plaster, 0.5)), 0.0, Vec3::ZERO);
+    let wall_c = Vec3::new(
+        b.rng.range(0.45, 0.85),
+        b.rng.range(0.45, 0.85),
+        b.rng.range(0.45, 0.85),
+    );
+    let wall = b.material(
+        "wall",
+        "diffuse",
+        wall_c,
+        Some((Kind::Plaster, 0.5)),
+        0.0,
+        Vec3::ZERO,
+    );
     let floor_kind = pick(b.rng, &[Kind::Wood, Kind::Tiles]);
     let floor_c = match floor_kind {
         Kind::Wood => Vec3::new(0.45, 0.28, 0.15) * b.rng.range(0.7, 1.3),
         _ => v3(b.rng, 0.3, 0.7),
     };
     let floor_r = b.rng.range(0.05, 0.3);
-    let floor = b.material("floor", "plastic", floor_c, Some((floor_kind, 0.8)), floor_r, Vec3::ZERO);
-    let ceiling = b.material("ceiling", "diffuse", Vec3::splat(0.8), None, 0.0, Vec3::ZERO);
+    let floor = b.material(
+        "floor",
+        "plastic",
+        floor_c,
+        Some((floor_kind, 0.8)),
+        floor_r,
+        Vec3::ZERO,
+    );
+    let ceiling = b.material(
+        "ceiling",
+        "diffuse",
+        Vec3::splat(0.8),
+        None,
+        0.0,
+        Vec3::ZERO,
+    );
     let (x0, x1, z0, z1, h) = (-hx, hx, -hz, hz, size.y);
     let shell = [
-        ("floor", Prim::Quad { corner: Vec3::new(x0, 0.0, z0), u: Vec3::Z * size.z, v: Vec3::X * size.x }, &floor, Surface::Glossy),
-        ("ceiling", Prim::Quad { corner: Vec3::new(x0, h, z0), u: Vec3::X * size.x, v: Vec3::Z * size.z }, &ceiling, Surface::Textureless),
-        ("wall_w", Prim::Quad { corner: Vec3::new(x0, 0.0, z0), u: Vec3::Y * h, v: Vec3::Z * size.z }, &wall, Surface::Textureless),
-        ("wall_e", Prim::Quad { corner: Vec3::new(x1, 0.0, z0), u: Vec3::Z * size.z, v: Vec3::Y * h }, &wall, Surface::Textureless),
-        ("wall_n", Prim::Quad { corner: Vec3::new(x0, 0.0, z0), u: Vec3::X * size.x, v: Vec3::Y * h }, &wall, Surface::Textureless),
-        ("wall_s", Prim::Quad { corner: Vec3::new(x0, 0.0, z1), u: Vec3::Y * h, v: Vec3::X * size.x }, &wall, Surface::Textureless),
+        (
+            "floor",
+            Prim::Quad {
+                corner: Vec3::new(x0, 0.0, z0),
+                u: Vec3::Z * size.z,
+                v: Vec3::X * size.x,
+            },
+            &floor,
+            Surface::Glossy,
+        ),
+        (
+            "ceiling",
+            Prim::Quad {
+                corner: Vec3::new(x0, h, z0),
+                u: Vec3::X * size.x,
+                v: Vec3::Z * size.z,
+            },
+            &ceiling,
+            Surface::Textureless,
+        ),
+        (
+            "wall_w",
+            Prim::Quad {
+                corner: Vec3::new(x0, 0.0, z0),
+                u: Vec3::Y * h,
+                v: Vec3::Z * size.z,
+            },
+            &wall,
+            Surface::Textureless,
+        ),
+        (
+            "wall_e",
+            Prim::Quad {
+                corner: Vec3::new(x1, 0.0, z0),
+                u: Vec3::Z * size.z,
+                v: Vec3::Y * h,
+            },
+            &wall,
+            Surface::Textureless,
+        ),
+        (
+            "wall_n",
+            Prim::Quad {
+                corner: Vec3::new(x0, 0.0, z0),
+                u: Vec3::X * size.x,
+                v: Vec3::Y * h,
+            },
+            &wall,
+            Surface::Textureless,
+        ),
+        (
+            "wall_s",
+            Prim::Quad {
+                corner: Vec3::new(x0, 0.0, z1),
+                u: Vec3::Y * h,
+                v: Vec3::X * size.x,
+            },
+            &wall,
+            Surface::Textureless,
+        ),
     ];
     for (n, p, m, s) in shell {
-        b.objects.push(Object { name: n.into(), prim: p, material: m.clone(), surface: s, shell: true });
+        b.objects.push(Object {
+            name: n.into(),
+            prim: p,
+            material: m.clone(),
+            surface: s,
+            shell: true,
+        });
     }
     // An opening: a doorway niche in the north wall (a recess 0.5 m deep, its own dark walls).
     let door_x = b.rng.range(x0 + 0.4, x1 - 1.4);
@@ -172,92 +296,323 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
     b.objects.push(Object {
         name: "doorway".into(),
         // The niche's back wall, 4 mm in front of the wall (it hides the wall there).
-        prim: Prim::Quad { corner: Vec3::new(door_x, 0.0, z0 + 0.004), u: Vec3::X * 0.95, v: Vec3::Y * 2.05 },
+        prim: Prim::Quad {
+            corner: Vec3::new(door_x, 0.0, z0 + 0.004),
+            u: Vec3::X * 0.95,
+            v: Vec3::Y * 2.05,
+        },
         material: dark,
         surface: Surface::Textureless,
         shell: true,
     });
-    b.taken.push((Vec2::new(door_x - 0.2, z0), Vec2::new(door_x + 1.15, z0 + 0.9)));
+    b.taken.push((
+        Vec2::new(door_x - 0.2, z0),
+        Vec2::new(door_x + 1.15, z0 + 0.9),
+    ));
 
     let inner_lo = Vec2::new(x0 + 0.05, z0 + 0.05);
     let inner_hi = Vec2::new(x1 - 0.05, z1 - 0.05);
     let wood_c = Vec3::new(0.5, 0.32, 0.18) * b.rng.range(0.6, 1.3);
     let top_r = b.rng.range(0.02, 0.3);
-    let tabletop = b.material("tabletop", "plastic", wood_c, Some((Kind::Wood, 1.0)), top_r, Vec3::ZERO);
+    let tabletop = b.material(
+        "tabletop",
+        "plastic",
+        wood_c,
+        Some((Kind::Wood, 1.0)),
+        top_r,
+        Vec3::ZERO,
+    );
     let metal_r = b.rng.range(0.1, 0.5);
-    let metal = b.material("metal", "conductor", Vec3::ZERO, None, metal_r, Vec3::new(0.9, 0.88, 0.85));
+    let metal = b.material(
+        "metal",
+        "conductor",
+        Vec3::ZERO,
+        None,
+        metal_r,
+        Vec3::new(0.9, 0.88, 0.85),
+    );
     let fabric_c = v3(b.rng, 0.15, 0.7);
-    let fabric = b.material("fabric", "diffuse", fabric_c, Some((Kind::Fabric, 2.0)), 0.0, Vec3::ZERO);
+    let fabric = b.material(
+        "fabric",
+        "diffuse",
+        fabric_c,
+        Some((Kind::Fabric, 2.0)),
+        0.0,
+        Vec3::ZERO,
+    );
     let tv_r = b.rng.range(0.02, 0.06);
     let tv = b.material("tv", "plastic", Vec3::splat(0.02), None, tv_r, Vec3::ZERO);
     let shelf_c = v3(b.rng, 0.3, 0.8);
     let shelf = b.material("shelf", "diffuse", shelf_c, None, 0.0, Vec3::ZERO);
 
     // A table with 4 cm legs (metal or wood) in the middle region.
-    if let Some(p) = b.place(inner_lo + Vec2::splat(0.6), inner_hi - Vec2::splat(0.6), 1.2, 0.75) {
+    if let Some(p) = b.place(
+        inner_lo + Vec2::splat(0.6),
+        inner_hi - Vec2::splat(0.6),
+        1.2,
+        0.75,
+    ) {
         let th = b.rng.range(0.72, 0.78);
-        b.add("table_top", boxp(Vec3::new(p.x, th - 0.04, p.y), Vec3::new(p.x + 1.2, th, p.y + 0.75)), &tabletop, Surface::Glossy);
-        let leg_m = if b.rng.f32() < 0.5 { metal.clone() } else { tabletop.clone() };
-        for (i, (dx, dz)) in [(0.03, 0.03), (1.13, 0.03), (0.03, 0.68), (1.13, 0.68)].iter().enumerate() {
+        b.add(
+            "table_top",
+            boxp(
+                Vec3::new(p.x, th - 0.04, p.y),
+                Vec3::new(p.x + 1.2, th, p.y + 0.75),
+            ),
+            &tabletop,
+            Surface::Glossy,
+        );
+        let leg_m = if b.rng.f32() < 0.5 {
+            metal.clone()
+        } else {
+            tabletop.clone()
+        };
+        for (i, (dx, dz)) in [(0.03, 0.03), (1.13, 0.03), (0.03, 0.68), (1.13, 0.68)]
+            .iter()
+            .enumerate()
+        {
             let lo = Vec3::new(p.x + dx, 0.0, p.y + dz);
-            b.add(&format!("table_leg{i}"), boxp(lo, lo + Vec3::new(0.04, th - 0.04, 0.04)), &leg_m, Surface::Textured);
+            b.add(
+                &format!("table_leg{i}"),
+                boxp(lo, lo + Vec3::new(0.04, th - 0.04, 0.04)),
+                &leg_m,
+                Surface::Textured,
+            );
         }
         // A chair with thin (1.5 cm) legs: MVS loses them.
         let c = Vec2::new(p.x + 0.4, p.y + 0.85);
         if b.free(c, c + Vec2::new(0.45, 0.45)) {
             b.taken.push((c, c + Vec2::new(0.45, 0.45)));
-            b.add("chair_seat", boxp(Vec3::new(c.x, 0.43, c.y), Vec3::new(c.x + 0.45, 0.47, c.y + 0.45)), &fabric, Surface::Textured);
-            b.add("chair_back", boxp(Vec3::new(c.x, 0.47, c.y + 0.41), Vec3::new(c.x + 0.45, 0.9, c.y + 0.45)), &fabric, Surface::Textured);
-            for (i, (dx, dz)) in [(0.0, 0.0), (0.435, 0.0), (0.0, 0.435), (0.435, 0.435)].iter().enumerate() {
+            b.add(
+                "chair_seat",
+                boxp(
+                    Vec3::new(c.x, 0.43, c.y),
+                    Vec3::new(c.x + 0.45, 0.47, c.y + 0.45),
+                ),
+                &fabric,
+                Surface::Textured,
+            );
+            b.add(
+                "chair_back",
+                boxp(
+                    Vec3::new(c.x, 0.47, c.y + 0.41),
+                    Vec3::new(c.x + 0.45, 0.9, c.y + 0.45),
+                ),
+                &fabric,
+                Surface::Textured,
+            );
+            for (i, (dx, dz)) in [(0.0, 0.0), (0.435, 0.0), (0.0, 0.435), (0.435, 0.435)]
+                .iter()
+                .enumerate()
+            {
                 let lo = Vec3::new(c.x + dx, 0.0, c.y + dz);
-                b.add(&format!("chair_leg{i}"), boxp(lo, lo + Vec3::new(0.015, 0.43, 0.015)), &metal, Surface::Glossy);
+                b.add(
+                    &format!("chair_leg{i}"),
+                    boxp(lo, lo + Vec3::new(0.015, 0.43, 0.015)),
+                    &metal,
+                    Surface::Glossy,
+                );
             }
         }
     }
     // A sofa or a bed block against the south wall.
     if b.rng.f32() < 0.5 {
-        if let Some(p) = b.place(Vec2::new(x0 + 0.1, z1 - 1.0), Vec2::new(x1 - 0.1, z1 - 0.02), 2.0, 0.9) {
-            b.add("sofa_base", boxp(Vec3::new(p.x, 0.0, p.y), Vec3::new(p.x + 2.0, 0.45, p.y + 0.9)), &fabric, Surface::Textured);
-            b.add("sofa_back", boxp(Vec3::new(p.x, 0.45, p.y + 0.7), Vec3::new(p.x + 2.0, 0.85, p.y + 0.9)), &fabric, Surface::Textured);
-            b.add("sofa_arm_l", boxp(Vec3::new(p.x, 0.45, p.y), Vec3::new(p.x + 0.2, 0.65, p.y + 0.7)), &fabric, Surface::Textured);
-            b.add("sofa_arm_r", boxp(Vec3::new(p.x + 1.8, 0.45, p.y), Vec3::new(p.x + 2.0, 0.65, p.y + 0.7)), &fabric, Surface::Textured);
+        if let Some(p) = b.place(
+            Vec2::new(x0 + 0.1, z1 - 1.0),
+            Vec2::new(x1 - 0.1, z1 - 0.02),
+            2.0,
+            0.9,
+        ) {
+            b.add(
+                "sofa_base",
+                boxp(
+                    Vec3::new(p.x, 0.0, p.y),
+                    Vec3::new(p.x + 2.0, 0.45, p.y + 0.9),
+                ),
+                &fabric,
+                Surface::Textured,
+            );
+            b.add(
+                "sofa_back",
+                boxp(
+                    Vec3::new(p.x, 0.45, p.y + 0.7),
+                    Vec3::new(p.x + 2.0, 0.85, p.y + 0.9),
+                ),
+                &fabric,
+                Surface::Textured,
+            );
+            b.add(
+                "sofa_arm_l",
+                boxp(
+                    Vec3::new(p.x, 0.45, p.y),
+                    Vec3::new(p.x + 0.2, 0.65, p.y + 0.7),
+                ),
+                &fabric,
+                Surface::Textured,
+            );
+            b.add(
+                "sofa_arm_r",
+                boxp(
+                    Vec3::new(p.x + 1.8, 0.45, p.y),
+                    Vec3::new(p.x + 2.0, 0.65, p.y + 0.7),
+                ),
+                &fabric,
+                Surface::Textured,
+            );
         }
-    } else if let Some(p) = b.place(Vec2::new(x0 + 0.1, z1 - 2.1), Vec2::new(x1 - 0.1, z1 - 0.02), 1.5, 2.05) {
+    } else if let Some(p) = b.place(
+        Vec2::new(x0 + 0.1, z1 - 2.1),
+        Vec2::new(x1 - 0.1, z1 - 0.02),
+        1.5,
+        2.05,
+    ) {
         let sheet_c = v3(b.rng, 0.6, 0.9);
-        let sheet = b.material("sheet", "diffuse", sheet_c, Some((Kind::Fabric, 2.0)), 0.0, Vec3::ZERO);
-        b.add("bed_base", boxp(Vec3::new(p.x, 0.0, p.y), Vec3::new(p.x + 1.5, 0.3, p.y + 2.0)), &tabletop, Surface::Glossy);
-        b.add("bed_mattress", boxp(Vec3::new(p.x + 0.02, 0.3, p.y + 0.02), Vec3::new(p.x + 1.48, 0.52, p.y + 1.98)), &sheet, Surface::Textured);
-        b.add("bed_head", boxp(Vec3::new(p.x, 0.0, p.y + 1.98), Vec3::new(p.x + 1.5, 1.0, p.y + 2.05)), &tabletop, Surface::Glossy);
+        let sheet = b.material(
+            "sheet",
+            "diffuse",
+            sheet_c,
+            Some((Kind::Fabric, 2.0)),
+            0.0,
+            Vec3::ZERO,
+        );
+        b.add(
+            "bed_base",
+            boxp(
+                Vec3::new(p.x, 0.0, p.y),
+                Vec3::new(p.x + 1.5, 0.3, p.y + 2.0),
+            ),
+            &tabletop,
+            Surface::Glossy,
+        );
+        b.add(
+            "bed_mattress",
+            boxp(
+                Vec3::new(p.x + 0.02, 0.3, p.y + 0.02),
+                Vec3::new(p.x + 1.48, 0.52, p.y + 1.98),
+            ),
+            &sheet,
+            Surface::Textured,
+        );
+        b.add(
+            "bed_head",
+            boxp(
+                Vec3::new(p.x, 0.0, p.y + 1.98),
+                Vec3::new(p.x + 1.5, 1.0, p.y + 2.05),
+            ),
+            &tabletop,
+            Surface::Glossy,
+        );
     }
     // A shelf against the east wall with 1.8 cm boards (thin: lost by MVS).
-    if let Some(p) = b.place(Vec2::new(x1 - 0.4, z0 + 0.2), Vec2::new(x1 - 0.01, z1 - 0.2), 0.38, 1.0) {
-        let (lo, hi) = (Vec3::new(p.x, 0.0, p.y), Vec3::new(p.x + 0.38, 1.8, p.y + 1.0));
-        b.add("shelf_side0", boxp(lo, Vec3::new(hi.x, hi.y, lo.z + 0.04)), &shelf, Surface::Textured);
-        b.add("shelf_side1", boxp(Vec3::new(lo.x, 0.0, hi.z - 0.04), hi), &shelf, Surface::Textured);
+    if let Some(p) = b.place(
+        Vec2::new(x1 - 0.4, z0 + 0.2),
+        Vec2::new(x1 - 0.01, z1 - 0.2),
+        0.38,
+        1.0,
+    ) {
+        let (lo, hi) = (
+            Vec3::new(p.x, 0.0, p.y),
+            Vec3::new(p.x + 0.38, 1.8, p.y + 1.0),
+        );
+        b.add(
+            "shelf_side0",
+            boxp(lo, Vec3::new(hi.x, hi.y, lo.z + 0.04)),
+            &shelf,
+            Surface::Textured,
+        );
+        b.add(
+            "shelf_side1",
+            boxp(Vec3::new(lo.x, 0.0, hi.z - 0.04), hi),
+            &shelf,
+            Surface::Textured,
+        );
         for i in 0..4 {
             let y = 0.05 + i as f32 * 0.45;
-            b.add(&format!("shelf_board{i}"), boxp(Vec3::new(lo.x, y, lo.z + 0.04), Vec3::new(hi.x, y + 0.018, hi.z - 0.04)), &shelf, Surface::Textured);
+            b.add(
+                &format!("shelf_board{i}"),
+                boxp(
+                    Vec3::new(lo.x, y, lo.z + 0.04),
+                    Vec3::new(hi.x, y + 0.018, hi.z - 0.04),
+                ),
+                &shelf,
+                Surface::Textured,
+            );
             // Boxes on the shelves give texture and occluders.
             let bx = b.rng.range(0.1, 0.5);
             let box_c = v3(b.rng, 0.1, 0.9);
             let color = b.material(&format!("box{i}"), "diffuse", box_c, None, 0.0, Vec3::ZERO);
             let z = b.rng.range(lo.z + 0.05, hi.z - 0.05 - bx);
-            b.add(&format!("shelf_item{i}"), boxp(Vec3::new(lo.x + 0.05, y + 0.018, z), Vec3::new(hi.x - 0.05, y + 0.018 + bx.min(0.4), z + bx)), &color, Surface::Textured);
+            b.add(
+                &format!("shelf_item{i}"),
+                boxp(
+                    Vec3::new(lo.x + 0.05, y + 0.018, z),
+                    Vec3::new(hi.x - 0.05, y + 0.018 + bx.min(0.4), z + bx),
+                ),
+                &color,
+                Surface::Textured,
+            );
         }
     }
     // A TV (4 cm panel, glossy) on a low cabinet along the west wall.
-    if let Some(p) = b.place(Vec2::new(x0 + 0.01, z0 + 0.3), Vec2::new(x0 + 0.5, z1 - 0.3), 0.45, 1.4) {
-        b.add("tv_cabinet", boxp(Vec3::new(p.x, 0.0, p.y), Vec3::new(p.x + 0.45, 0.5, p.y + 1.4)), &tabletop, Surface::Glossy);
-        b.add("tv_panel", boxp(Vec3::new(p.x + 0.15, 0.6, p.y + 0.1), Vec3::new(p.x + 0.19, 1.3, p.y + 1.3)), &tv, Surface::Glossy);
-        b.add("tv_foot", boxp(Vec3::new(p.x + 0.12, 0.5, p.y + 0.6), Vec3::new(p.x + 0.22, 0.6, p.y + 0.8)), &metal, Surface::Glossy);
+    if let Some(p) = b.place(
+        Vec2::new(x0 + 0.01, z0 + 0.3),
+        Vec2::new(x0 + 0.5, z1 - 0.3),
+        0.45,
+        1.4,
+    ) {
+        b.add(
+            "tv_cabinet",
+            boxp(
+                Vec3::new(p.x, 0.0, p.y),
+                Vec3::new(p.x + 0.45, 0.5, p.y + 1.4),
+            ),
+            &tabletop,
+            Surface::Glossy,
+        );
+        b.add(
+            "tv_panel",
+            boxp(
+                Vec3::new(p.x + 0.15, 0.6, p.y + 0.1),
+                Vec3::new(p.x + 0.19, 1.3, p.y + 1.3),
+            ),
+            &tv,
+            Surface::Glossy,
+        );
+        b.add(
+            "tv_foot",
+            boxp(
+                Vec3::new(p.x + 0.12, 0.5, p.y + 0.6),
+                Vec3::new(p.x + 0.22, 0.6, p.y + 0.8),
+            ),
+            &metal,
+            Surface::Glossy,
+        );
     }
     // Cylinders: a stool or vase and a floor-lamp stand.
     for i in 0..2 {
         let r = b.rng.range(0.12, 0.25);
-        if let Some(p) = b.place(inner_lo + Vec2::splat(0.2), inner_hi - Vec2::splat(0.2), 2.0 * r, 2.0 * r) {
-            let m = if i == 0 { metal.clone() } else { fabric.clone() };
+        if let Some(p) = b.place(
+            inner_lo + Vec2::splat(0.2),
+            inner_hi - Vec2::splat(0.2),
+            2.0 * r,
+            2.0 * r,
+        ) {
+            let m = if i == 0 {
+                metal.clone()
+            } else {
+                fabric.clone()
+            };
             let h = b.rng.range(0.4, 0.9);
-            b.add(&format!("cylinder{i}"), Prim::Cylinder { base: Vec3::new(p.x + r, 0.0, p.y + r), radius: r, height: h }, &m, Surface::Textured);
+            b.add(
+                &format!("cylinder{i}"),
+                Prim::Cylinder {
+                    base: Vec3::new(p.x + r, 0.0, p.y + r),
+                    radius: r,
+                    height: h,
+                },
+                &m,
+                Surface::Textured,
+            );
         }
     }
     // Posters: 1 cm thick prints on the walls (thin: they merge into the wall in the proxy).
@@ -265,7 +620,14 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         let name = format!("poster{i}");
         let base = v3(b.rng, 0.2, 0.9);
         let (w, hh) = (b.rng.range(0.4, 0.8), b.rng.range(0.5, 0.9));
-        let m = b.material(&name, "diffuse", base, Some((Kind::Poster, 1.0 / w.max(hh))), 0.0, Vec3::ZERO);
+        let m = b.material(
+            &name,
+            "diffuse",
+            base,
+            Some((Kind::Poster, 1.0 / w.max(hh))),
+            0.0,
+            Vec3::ZERO,
+        );
         let y = b.rng.range(1.2, 1.6);
         let prim = if i == 0 {
             let x = b.rng.range(x0 + 1.4, x1 - w - 0.2);
@@ -277,18 +639,35 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         b.add(&name, prim, &m, Surface::Textured);
     }
 
-    let Builder { objects, materials, taken, .. } = b;
+    let Builder {
+        objects,
+        materials,
+        taken,
+        ..
+    } = b;
 
     // Original lighting: ceiling panel(s) and sometimes a window-like emitter on a wall.
     let mut lights = Vec::new();
     let panels = if rng.f32() < 0.5 { 1 } else { 2 };
     for i in 0..panels {
         let (w, d) = (rng.range(0.5, 0.9), rng.range(0.5, 0.9));
-        let c = Vec3::new(if panels == 1 { 0.0 } else { (i as f32 - 0.5) * size.x * 0.45 }, h - 0.005, rng.range(-0.3, 0.3));
+        let c = Vec3::new(
+            if panels == 1 {
+                0.0
+            } else {
+                (i as f32 - 0.5) * size.x * 0.45
+            },
+            h - 0.005,
+            rng.range(-0.3, 0.3),
+        );
         lights.push(Light {
             name: format!("ceiling{i}"),
             // X × Z = -Y: the panel faces down.
-            shape: LightShape::Quad { corner: c - Vec3::new(w / 2.0, 0.0, d / 2.0), edge_u: Vec3::X * w, edge_v: Vec3::Z * d },
+            shape: LightShape::Quad {
+                corner: c - Vec3::new(w / 2.0, 0.0, d / 2.0),
+                edge_u: Vec3::X * w,
+                edge_v: Vec3::Z * d,
+            },
             radiance: [0.0; 3],
             original: true,
         });
@@ -299,7 +678,11 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         lights.push(Light {
             name: "window".into(),
             // On the west wall, Y × Z = +X: facing into the room.
-            shape: LightShape::Quad { corner: Vec3::new(x0 + 0.005, 1.0, z), edge_u: Vec3::Y * hh, edge_v: Vec3::Z * w },
+            shape: LightShape::Quad {
+                corner: Vec3::new(x0 + 0.005, 1.0, z),
+                edge_u: Vec3::Y * hh,
+                edge_v: Vec3::Z * w,
+            },
             radiance: [0.0; 3],
             original: true,
         });
@@ -313,29 +696,61 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
     }
     // Extra lights at random positions, each a condition of its own at the same power.
     for i in 0..o.extra_lights {
-        let c = Vec3::new(rng.range(x0 + 0.4, x1 - 0.4), rng.range(0.6, h - 0.3), rng.range(z0 + 0.4, z1 - 0.4));
-        let target = Vec3::new(rng.range(-0.5, 0.5), rng.range(0.0, 0.5), rng.range(-0.5, 0.5)) * size;
+        let c = Vec3::new(
+            rng.range(x0 + 0.4, x1 - 0.4),
+            rng.range(0.6, h - 0.3),
+            rng.range(z0 + 0.4, z1 - 0.4),
+        );
+        let target = Vec3::new(
+            rng.range(-0.5, 0.5),
+            rng.range(0.0, 0.5),
+            rng.range(-0.5, 0.5),
+        ) * size;
         let n = (target - c).normalize_or(Vec3::NEG_Y);
-        let tint = Vec3::new(rng.range(0.6, 1.0), rng.range(0.6, 1.0), rng.range(0.6, 1.0));
+        let tint = Vec3::new(
+            rng.range(0.6, 1.0),
+            rng.range(0.6, 1.0),
+            rng.range(0.6, 1.0),
+        );
         let shape = if rng.f32() < 0.5 {
-            LightShape::Disk { center: c, normal: n, radius: rng.range(0.06, 0.15) }
+            LightShape::Disk {
+                center: c,
+                normal: n,
+                radius: rng.range(0.06, 0.15),
+            }
         } else {
             let t1 = n.any_orthonormal_vector();
             let t2 = n.cross(t1);
             let (w, d) = (rng.range(0.1, 0.3), rng.range(0.1, 0.3));
             // edge_u × edge_v must be n: (t2 × t1) = -n, so use u = t1, v = t2 (t1 × t2 = n).
-            LightShape::Quad { corner: c - t1 * (w / 2.0) - t2 * (d / 2.0), edge_u: t1 * w, edge_v: t2 * d }
+            LightShape::Quad {
+                corner: c - t1 * (w / 2.0) - t2 * (d / 2.0),
+                edge_u: t1 * w,
+                edge_v: t2 * d,
+            }
         };
         let area = shape.area();
-        lights.push(Light { name: format!("extra{i}"), shape, radiance: radiance_for(CONDITION_POWER, area, tint), original: false });
+        lights.push(Light {
+            name: format!("extra{i}"),
+            shape,
+            radiance: radiance_for(CONDITION_POWER, area, tint),
+            original: false,
+        });
     }
-    let mut conditions = vec![("original".to_string(), originals.iter().map(|&i| lights[i].name.clone()).collect())];
+    let mut conditions = vec![(
+        "original".to_string(),
+        originals.iter().map(|&i| lights[i].name.clone()).collect(),
+    )];
     for l in lights.iter().filter(|l| !l.original) {
         conditions.push((l.name.clone(), vec![l.name.clone()]));
     }
 
     // Capture cameras: a handheld walk around the room, looking at content.
-    let inside = |p: Vec2| taken.iter().all(|(a, b)| p.x < a.x - 0.25 || p.x > b.x + 0.25 || p.y < a.y - 0.25 || p.y > b.y + 0.25);
+    let inside = |p: Vec2| {
+        taken.iter().all(|(a, b)| {
+            p.x < a.x - 0.25 || p.x > b.x + 0.25 || p.y < a.y - 0.25 || p.y > b.y + 0.25
+        })
+    };
     let content: Vec<Vec3> = objects
         .iter()
         .filter(|o| !o.shell)
@@ -349,7 +764,10 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
     let mut tries = 0;
     while cameras.len() < o.views && tries < 10_000 {
         tries += 1;
-        let p = Vec2::new(rng.range(x0 + 0.35, x1 - 0.35), rng.range(z0 + 0.35, z1 - 0.35));
+        let p = Vec2::new(
+            rng.range(x0 + 0.35, x1 - 0.35),
+            rng.range(z0 + 0.35, z1 - 0.35),
+        );
         if !inside(p) {
             continue;
         }
@@ -392,7 +810,18 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         })
         .collect();
 
-    Room { seed, size, objects, materials, lights, conditions, cameras, path, path_fov_deg, test_cameras }
+    Room {
+        seed,
+        size,
+        objects,
+        materials,
+        lights,
+        conditions,
+        cameras,
+        path,
+        path_fov_deg,
+        test_cameras,
+    }
 }
 
 /// Catmull-Rom interpolation of positions and look-at points at time `t` (clamped ends).
@@ -406,7 +835,10 @@ pub fn sample_path(keys: &[(f32, Vec3, Vec3)], t: f32) -> (Vec3, Vec3) {
     let f = (t - keys[i].0) / (keys[i + 1].0 - keys[i].0).max(1e-9);
     let at = |k: isize| keys[k.clamp(0, n as isize - 1) as usize];
     let cr = |p0: Vec3, p1: Vec3, p2: Vec3, p3: Vec3| {
-        0.5 * (2.0 * p1 + (p2 - p0) * f + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * f * f + (3.0 * p1 - p0 - 3.0 * p2 + p3) * f * f * f)
+        0.5 * (2.0 * p1
+            + (p2 - p0) * f
+            + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * f * f
+            + (3.0 * p1 - p0 - 3.0 * p2 + p3) * f * f * f)
     };
     let i = i as isize;
     (

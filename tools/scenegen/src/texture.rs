@@ -14,7 +14,10 @@ pub struct Noise {
 
 impl Noise {
     pub fn new(rng: &mut Rng, period: u32) -> Noise {
-        Noise { grid: (0..period * period).map(|_| rng.f32()).collect(), period }
+        Noise {
+            grid: (0..period * period).map(|_| rng.f32()).collect(),
+            period,
+        }
     }
     /// `x`, `y` in cells.
     pub fn at(&self, x: f32, y: f32) -> f32 {
@@ -59,7 +62,11 @@ fn to_u8(c: Vec3) -> [u8; 3] {
 pub fn make(kind: Kind, base: Vec3, rng: &mut Rng) -> (image::RgbImage, Vec3) {
     let noise = Noise::new(rng, 16);
     let noise2 = Noise::new(rng, 8);
-    let accent = Vec3::new(rng.range(0.2, 0.9), rng.range(0.2, 0.9), rng.range(0.2, 0.9));
+    let accent = Vec3::new(
+        rng.range(0.2, 0.9),
+        rng.range(0.2, 0.9),
+        rng.range(0.2, 0.9),
+    );
     let mut img = image::RgbImage::new(SIZE, SIZE);
     let mut sum = Vec3::ZERO;
     for y in 0..SIZE {
@@ -69,18 +76,25 @@ pub fn make(kind: Kind, base: Vec3, rng: &mut Rng) -> (image::RgbImage, Vec3) {
                 Kind::Wood => {
                     // Rings stretched along u, with planks every quarter.
                     let plank = (v * 4.0).floor();
-                    let rings = ((v * 4.0 * 10.0 + noise.fbm(u * 2.0, v * 16.0 + plank * 3.0, 3) * 6.0).sin() * 0.5 + 0.5).powf(3.0);
+                    let rings = ((v * 4.0 * 10.0
+                        + noise.fbm(u * 2.0, v * 16.0 + plank * 3.0, 3) * 6.0)
+                        .sin()
+                        * 0.5
+                        + 0.5)
+                        .powf(3.0);
                     let seam = if (v * 4.0).fract() < 0.02 { 0.55 } else { 1.0 };
                     base * (0.75 + 0.35 * rings - 0.1 * noise2.at(plank * 2.0, u * 8.0)) * seam
                 }
                 Kind::Tiles => {
                     let (tu, tv) = ((u * 4.0).fract(), (v * 4.0).fract());
                     let grout = tu < 0.04 || tv < 0.04;
-                    let cell = ((u * 4.0).floor() + 4.0 * (v * 4.0).floor()) as f32;
+                    let cell = (u * 4.0).floor() + 4.0 * (v * 4.0).floor();
                     if grout {
                         Vec3::splat(0.35)
                     } else {
-                        base * (0.9 + 0.15 * noise2.at(cell, cell * 0.37) + 0.05 * noise.fbm(u * 16.0, v * 16.0, 2))
+                        base * (0.9
+                            + 0.15 * noise2.at(cell, cell * 0.37)
+                            + 0.05 * noise.fbm(u * 16.0, v * 16.0, 2))
                     }
                 }
                 Kind::Fabric => {
@@ -89,16 +103,27 @@ pub fn make(kind: Kind, base: Vec3, rng: &mut Rng) -> (image::RgbImage, Vec3) {
                 }
                 Kind::Poster => {
                     // Bands, a disc and noise: content with edges, like a print.
-                    let band = if ((u + noise.at(v * 4.0, 0.0) * 0.2) * 5.0).floor() as i32 % 2 == 0 { base } else { accent };
+                    let band = if ((u + noise.at(v * 4.0, 0.0) * 0.2) * 5.0).floor() as i32 % 2 == 0
+                    {
+                        base
+                    } else {
+                        accent
+                    };
                     let d = Vec3::new(u - 0.6, v - 0.4, 0.0).length();
-                    if d < 0.2 { Vec3::ONE - accent * 0.7 } else { band * (0.8 + 0.3 * noise.fbm(u * 8.0, v * 8.0, 3)) }
+                    if d < 0.2 {
+                        Vec3::ONE - accent * 0.7
+                    } else {
+                        band * (0.8 + 0.3 * noise.fbm(u * 8.0, v * 8.0, 3))
+                    }
                 }
                 Kind::Plaster => base * (0.93 + 0.1 * noise.fbm(u * 16.0, v * 16.0, 4)),
             };
             let c = c.clamp(Vec3::splat(0.01), Vec3::splat(0.95));
             let px = to_u8(c);
             img.put_pixel(x, y, image::Rgb(px));
-            sum += Vec3::from(px.map(|b| relit_engine::scene::image::srgb_to_linear(b as f32 / 255.0)));
+            sum += Vec3::from(
+                px.map(|b| relit_engine::scene::image::srgb_to_linear(b as f32 / 255.0)),
+            );
         }
     }
     (img, sum / (SIZE * SIZE) as f32)

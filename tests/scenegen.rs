@@ -1,0 +1,220 @@
+//! scenegen: tessellation, lights and conditions, cameras, and the proxy mesh's degradations.
+
+mod common;
+
+use glam::Vec3;
+use relit_engine::scene::synth::Rng;
+use relit_engine::scene::{LightShape, Scene};
+use relit_scenegen::prim::{tessellate, Prim};
+use relit_scenegen::proxy::{degrade, ProxyParams};
+use relit_scenegen::room::{self, Object, RoomOptions, Surface, CONDITION_POWER};
+
+fn small() -> RoomOptions {
+    RoomOptions {
+        views: 6,
+        width: 32,
+        height: 24,
+        extra_lights: 3,
+        test_views: 2,
+    }
+}
+
+#[test]
+fn tessellated_normals_follow_the_winding() {
+    let prims = [
+        Prim::Box {
+            lo: Vec3::ZERO,
+            hi: Vec3::new(1.0, 0.5, 0.3),
+            inward: false,
+        },
+        Prim::Box {
+            lo: Vec3::ZERO,
+            hi: Vec3::new(1.0, 0.5, 0.3),
+            inward: true,
+        },
+        Prim::Cylinder {
+            base: Vec3::new(0.2, 0.0, 0.1),
+            radius: 0.3,
+            height: 0.8,
+        },
+        Prim::Quad {
+            corner: Vec3::ZERO,
+            u: Vec3::X,
+            v: Vec3::Z * 0.5,
+        },
+    ];
+    for p in &prims {
+        let m = tessellate(p, 0.1);
+        assert!(!m.triangles.is_empty());
+        for t in &m.triangles {
+            let [a, b, c] = t.map(|i| m.positions[i as usize]);
+            let face = (b - a).cross(c - a).normalize();
+            let vn =
+                (m.normals[t[0] as usize] + m.normals[t[1] as usize] + m.normals[t[2] as usize])
+                    .normalize();
+            assert!(
+                face.dot(vn) > 0.9,
+                "{p:?}: winding normal {face} vs vertex normals {vn}"
+            );
+        }
+    }
+}
+
+#[test]
+fn lights_conditions_and_cameras_are_consistent() {
+    let r = room::generate(5, &small());
+    // Every condition emits CONDITION_POWER watts (luminance-weighted): Φ = π A L.
+    for (name, lights) in &r.conditions {
+        let p: f32 = lights
+            .iter()
+            .map(|n| {
+                let l = r.lights.iter().find(|l| &l.name == n).unwrap();
+                let lum = Vec3::from(l.radiance).dot(Vec3::new(0.2126, 0.7152, 0.0722));
+                std::f32::consts::PI * l.shape.area() * lum
+            })
+            .sum();
+        assert!(
+            (p - CONDITION_POWER).abs() < 1e-3 * CONDITION_POWER,
+            "{name}: {p} W"
+        );
+    }
+    assert_eq!(r.conditions[0].0, "original");
+    assert_eq!(r.conditions.len(), 1 + small().extra_lights);
+    // Quad lights face into the room (their emitting side points away from the nearest wall).
+    for l in &r.lights {
+        if let LightShape::Quad { edge_u, edge_v, .. } = l.shape {
+            let n = edge_u.cross(edge_v).normalize();
+            let to_centre = (Vec3::new(0.0, r.size.y / 2.0, 0.0) - l.shape.center()).normalize();
+            assert!(
+                n.dot(to_centre) > 0.0,
+                "light {} faces away from the room",
+                l.name
+            );
+        }
+    }
+    assert_eq!(r.cameras.len(), small().views);
+    for c in r.cameras.iter().chain(&r.test_cameras) {
+        let p = c.center();
+        assert!(
+            p.x.abs() < r.size.x / 2.0 && p.z.abs() < r.size.z / 2.0 && p.y > 0.0 && p.y < r.size.y
+        );
+        c.validate().unwrap();
+    }
+}
+
+#[test]
+fn proxy_loses_thin_parts_rounds_corners_and_stays_near_the_surface() {
+    let p = ProxyParams::default();
+    let mut rng = Rng::new(1);
+    let obj = |prim, surface| Object {
+        name: "o".into(),
+        prim,
+        material: "m".into(),
+        surface,
+        shell: false,
+    };
+    // A 1.5 cm leg is lost.
+    let leg = obj(
+        Prim::Box {
+            lo: Vec3::ZERO,
+            hi: Vec3::new(0.015, 0.4, 0.015),
+            inward: false,
+        },
+        Surface::Textured,
+    );
+    assert!(degrade(&leg, &p, &mut rng).triangles.is_empty());
+    // A box keeps its extent up to the noise, and no vertex stays on a sharp corner.
+    let (lo, hi) = (Vec3::ZERO, Vec3::new(0.6, 0.4, 0.5));
+    let b = obj(
+        Prim::Box {
+            lo,
+            hi,
+            inward: false,
+        },
+        Surface::Textured,
+    );
+    let m = degrade(&b, &p, &mut rng);
+    assert!(!m.triangles.is_empty());
+    let slack = Vec3::splat(p.noise_amp + 1e-4);
+    for q in &m.positions {
+        assert!(
+            q.cmpge(lo - slack).all() && q.cmple(hi + slack).all(),
+            "{q} outside the box"
+        );
+        let corner_dist = [lo, hi]
+            .iter()
+            .flat_map(|a| [lo, hi].map(move |b| (a, b)))
+            .flat_map(|(a, b)| [lo, hi].map(move |c| Vec3::new(a.x, b.y, c.z)))
+            .map(|c| (*q - c).length())
+            .fold(f32::MAX, f32::min);
+        assert!(corner_dist > 0.005, "vertex {q} sits on a sharp corner");
+    }
+    // Large textureless walls get holes at this seed (hole_prob 1).
+    let holes = ProxyParams {
+        hole_prob: 1.0,
+        ..p.clone()
+    };
+    let wall = Object {
+        shell: true,
+        ..obj(
+            Prim::Quad {
+                corner: Vec3::ZERO,
+                u: Vec3::Y * 2.5,
+                v: Vec3::Z * 4.0,
+            },
+            Surface::Textureless,
+        )
+    };
+    let full = tessellate(&wall.prim, p.edge).triangles.len();
+    let holed = degrade(&wall, &holes, &mut rng).triangles.len();
+    assert!(holed < full, "no hole: {holed} of {full}");
+}
+
+#[test]
+fn generated_scenes_load_and_are_deterministic() {
+    let a = common::tempdir("scenegen-a");
+    let b = common::tempdir("scenegen-b");
+    relit_scenegen::generate(&a, 21, &small()).unwrap();
+    relit_scenegen::generate(&b, 21, &small()).unwrap();
+    let ja = std::fs::read_to_string(a.join("scene.json")).unwrap();
+    let jb = std::fs::read_to_string(b.join("scene.json")).unwrap();
+    assert_eq!(ja, jb.replace(b.to_str().unwrap(), a.to_str().unwrap()));
+    assert_eq!(
+        std::fs::read(a.join("mesh.ply")).unwrap(),
+        std::fs::read(b.join("mesh.ply")).unwrap()
+    );
+    let s = Scene::load(&a).unwrap();
+    let syn = s.synthetic.as_ref().unwrap();
+    assert_eq!(syn.test_views.len(), 2);
+    assert!(s.true_mesh_path.as_ref().unwrap().exists());
+    // The proxy differs from the true mesh (degraded), but spans the same room.
+    let t = relit_engine::scene::Mesh::load(s.true_mesh_path.as_ref().unwrap()).unwrap();
+    let (tl, th) = t.bounds();
+    let (pl, ph) = s.mesh.bounds();
+    assert!((tl - pl).abs().max_element() < 0.05 && (th - ph).abs().max_element() < 0.05);
+    assert_ne!(t.triangles.len(), s.mesh.triangles.len());
+}
+
+#[test]
+fn synthetic_block_is_validated() {
+    let d = common::tempdir("scenegen-bad");
+    relit_scenegen::generate(&d, 3, &small()).unwrap();
+    let p = d.join("scene.json");
+    let s = std::fs::read_to_string(&p).unwrap();
+    std::fs::write(&p, s.replacen("\"extra0\"\n", "\"extra9\"\n", 1)).unwrap();
+    let err = Scene::load(&d).unwrap_err().to_string();
+    assert!(
+        err.contains("scene.json") && err.contains("extra9"),
+        "{err}"
+    );
+    std::fs::write(
+        &p,
+        s.replacen("\"material\": \"wall\"", "\"material\": \"marble\"", 1),
+    )
+    .unwrap();
+    let err = Scene::load(&d).unwrap_err().to_string();
+    assert!(
+        err.contains("marble") && err.contains("not defined"),
+        "{err}"
+    );
+}
