@@ -7,8 +7,10 @@
 //! - [`raster`]: the G-buffer of a mesh seen from a camera.
 //! - [`trace`]: generic ray casting with ray queries (tests, `relit bench rays`).
 //! - [`net`]: the network's kernels (§5.1), each with a cooperative-matrix and a portable backend.
+//! - [`bake`]: the per-view maps of §4.1–4.2 (source irradiance, …).
 //! - [`cpu`]: CPU references used by the tests and by tools.
 
+pub mod bake;
 pub mod cpu;
 pub mod error;
 pub mod gpu;

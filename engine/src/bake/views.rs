@@ -1,0 +1,122 @@
+//! The input views on the GPU for the bake: cameras, G-buffers of the proxy mesh from each
+//! view (the per-view depth maps of §4.1, used by every visibility test), and the colour images,
+//! view-major in storage buffers (`shaders_glsl/common/views.glsl`).
+
+use std::sync::Arc;
+
+use glam::{Vec2, Vec3};
+
+use crate::error::{Error, Result};
+use crate::gpu::{vk, Bind, Buffer, Gpu, RayScene};
+use crate::raster::GbufferPass;
+use crate::scene::{Camera, GpuCamera, RgbImage};
+
+/// Near and far planes of the per-view depth maps (m).
+pub const NEAR: f32 = 0.02;
+pub const FAR: f32 = 1000.0;
+
+/// Host copy of the views (the CPU references read this).
+pub struct ViewData {
+    pub cameras: Vec<Camera>,
+    pub width: u32,
+    pub height: u32,
+    /// Per view and pixel: world position and camera depth (w = 0: no surface).
+    pub pos: Vec<[f32; 4]>,
+    pub nrm: Vec<[f32; 4]>,
+    /// Per view and pixel: linear RGB radiance.
+    pub img: Vec<[f32; 4]>,
+}
+
+impl ViewData {
+    /// Rasterizes the proxy mesh from every camera and gathers the images.
+    pub fn build(gpu: &Arc<Gpu>, mesh: &RayScene, cameras: &[Camera], images: &[RgbImage]) -> Result<ViewData> {
+        let (width, height) = (cameras[0].width, cameras[0].height);
+        if let Some(c) = cameras.iter().find(|c| (c.width, c.height) != (width, height)) {
+            return Err(Error::Other(format!(
+                "the bake needs all views at one resolution: {}x{} and {}x{}",
+                width, height, c.width, c.height
+            )));
+        }
+        let pass = GbufferPass::new(gpu)?;
+        let mut d = ViewData { cameras: cameras.to_vec(), width, height, pos: vec![], nrm: vec![], img: vec![] };
+        for (c, im) in cameras.iter().zip(images) {
+            let g = pass.render(mesh, c, NEAR, FAR)?.download()?;
+            d.pos.extend(g.pos_depth);
+            d.nrm.extend(g.normal);
+            d.img.extend(im.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]));
+        }
+        Ok(d)
+    }
+
+    pub fn pixels(&self) -> usize {
+        (self.width * self.height) as usize
+    }
+
+    /// CPU mirror of `visible_pixel` in views.glsl: the global pixel index where view `j`
+    /// sees `p`, if it does.
+    pub fn visible_pixel(&self, j: usize, p: Vec3) -> Option<usize> {
+        let c = &self.cameras[j];
+        let q = c.to_camera(p);
+        if q.z <= 1e-3 {
+            return None;
+        }
+        let px = Vec2::new(c.fx * q.x / q.z + c.cx, c.fy * q.y / q.z + c.cy);
+        if px.x < 0.0 || px.y < 0.0 || px.x >= self.width as f32 || px.y >= self.height as f32 {
+            return None;
+        }
+        let idx = j * self.pixels() + px.y as usize * self.width as usize + px.x as usize;
+        let d = self.pos[idx][3];
+        (d > 0.0 && (d - q.z).abs() <= DEPTH_EPS * q.z).then_some(idx)
+    }
+}
+
+/// Keep in step with `DEPTH_EPS` in views.glsl.
+pub const DEPTH_EPS: f32 = 0.02;
+
+/// The views' buffers on the GPU.
+pub struct GpuViews {
+    pub cameras: Buffer,
+    pub pos: Buffer,
+    pub nrm: Buffer,
+    pub img: Buffer,
+    pub count: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl GpuViews {
+    pub fn upload(gpu: &Arc<Gpu>, d: &ViewData) -> Result<GpuViews> {
+        let u = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let cams: Vec<GpuCamera> = d.cameras.iter().map(|c| c.to_gpu(NEAR, FAR)).collect();
+        Ok(GpuViews {
+            cameras: Buffer::from_slice(gpu, "view cameras", u, &cams)?,
+            pos: Buffer::from_slice(gpu, "view positions", u, &d.pos)?,
+            nrm: Buffer::from_slice(gpu, "view normals", u, &d.nrm)?,
+            img: Buffer::from_slice(gpu, "view images", u, &d.img)?,
+            count: d.cameras.len() as u32,
+            width: d.width,
+            height: d.height,
+        })
+    }
+
+    /// The four bindings of views.glsl starting at `base`.
+    pub fn binds(&self, base: u32) -> [(u32, Bind<'_>); 4] {
+        [
+            (base, Bind::Buffer(&self.cameras)),
+            (base + 1, Bind::Buffer(&self.pos)),
+            (base + 2, Bind::Buffer(&self.nrm)),
+            (base + 3, Bind::Buffer(&self.img)),
+        ]
+    }
+}
+
+/// Camera centre of view `j`, oriented normal at a pixel (facing that view's camera).
+pub fn facing_normal(d: &ViewData, gi: usize, view: usize) -> Vec3 {
+    let x = Vec3::from_slice(&d.pos[gi][..3]);
+    let n = Vec3::from_slice(&d.nrm[gi][..3]);
+    if n.dot(d.cameras[view].center() - x) < 0.0 {
+        -n
+    } else {
+        n
+    }
+}

@@ -1,0 +1,31 @@
+// The input views as the bake and frame passes read them: cameras, per-view G-buffers of the
+// proxy mesh (position + camera depth, normal) and colour images, all views at one resolution,
+// stored view-major in storage buffers. A shader that includes this declares:
+//   layout(set = 0, binding = VIEWS_BINDING + 0) cameras, + 1 positions, + 2 normals, + 3 images.
+#ifndef RELIT_VIEWS_GLSL
+#define RELIT_VIEWS_GLSL
+#include "camera.glsl"
+
+layout(set = 0, binding = VIEWS_BINDING + 0, scalar) readonly buffer Cameras { Camera cams[]; };
+layout(set = 0, binding = VIEWS_BINDING + 1) readonly buffer GPos { vec4 gpos[]; };
+layout(set = 0, binding = VIEWS_BINDING + 2) readonly buffer GNrm { vec4 gnrm[]; };
+layout(set = 0, binding = VIEWS_BINDING + 3) readonly buffer Images { vec4 images[]; };
+
+// Relative depth tolerance of the visibility test: the point is seen by view j when its camera
+// depth agrees with view j's depth map within this fraction (MVS meshes are only this good).
+const float DEPTH_EPS = 0.02;
+
+// Pixel index (into a view's maps) where p projects in view j when j sees p; -1 otherwise.
+int visible_pixel(uint j, vec3 p, uint W, uint H) {
+    Camera c = cams[j];
+    vec3 q = cam_from_world(c, p);
+    if (q.z <= 1e-3) return -1;
+    vec2 px = vec2(c.intrinsics.x * q.x / q.z + c.intrinsics.z, c.intrinsics.y * q.y / q.z + c.intrinsics.w);
+    if (px.x < 0.0 || px.y < 0.0 || px.x >= float(W) || px.y >= float(H)) return -1;
+    uint idx = j * W * H + uint(px.y) * W + uint(px.x);
+    float d = gpos[idx].w;
+    if (d <= 0.0 || abs(d - q.z) > DEPTH_EPS * q.z) return -1;
+    return int(idx);
+}
+
+#endif

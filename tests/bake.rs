@@ -1,0 +1,61 @@
+//! Bake passes against their CPU references on a tiny scene (the procedural test room at
+//! 32×24, 4 views, CPU-shaded images), validation on.
+
+mod common;
+
+use relit_engine::bake::{source_irradiance, GpuViews, SourceIrradiance, ViewData};
+use relit_engine::gpu::RayScene;
+use relit_engine::scene::synth::{self, SynthOptions};
+
+struct Tiny {
+    mesh: relit_engine::scene::Mesh,
+    data: ViewData,
+}
+
+fn tiny(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>) -> (Tiny, RayScene) {
+    let o = SynthOptions { views: 4, width: 32, height: 24, seed: 3, wall_subdiv: 2 };
+    let (mesh, albedo) = synth::room(o.wall_subdiv);
+    let (lights, _) = synth::room_lights();
+    let cams = synth::capture_cameras(&o);
+    let imgs: Vec<_> = cams.iter().map(|c| synth::shade(&mesh, &albedo, c, &lights[0])).collect();
+    let rs = RayScene::new(gpu, &mesh.positions, &mesh.triangles).unwrap();
+    let data = ViewData::build(gpu, &rs, &cams, &imgs).unwrap();
+    (Tiny { mesh, data }, rs)
+}
+
+/// Fraction of pixels whose values differ by more than `rel` (relative to the image mean).
+fn mismatch(gpu: &[[f32; 4]], cpu: &[[f32; 4]], rel: f32) -> (f32, f32) {
+    let mean = cpu.iter().map(|p| p[0] + p[1] + p[2]).sum::<f32>() / (3.0 * cpu.len() as f32);
+    let mut bad = 0;
+    let mut worst = 0f32;
+    for (g, c) in gpu.iter().zip(cpu) {
+        let e = (0..3).map(|k| (g[k] - c[k]).abs()).fold(0f32, f32::max) / mean.max(1e-6);
+        worst = worst.max(e);
+        if e > rel {
+            bad += 1;
+        }
+    }
+    (bad as f32 / gpu.len() as f32, worst)
+}
+
+#[test]
+fn source_irradiance_matches_cpu_reference() {
+    let gpu = common::gpu();
+    let (t, rs) = tiny(&gpu);
+    let views = GpuViews::upload(&gpu, &t.data).unwrap();
+    let pass = SourceIrradiance::new(&gpu).unwrap();
+    for view in 0..4u32 {
+        let g = pass.run(&rs, &views, view, 16, 7).unwrap();
+        let c = source_irradiance::reference(&t.mesh, &t.data, view as usize, 16, 7);
+        // Same random numbers; GPU sin/cos and hit points differ in the last bits, which can
+        // flip a ray's best view or hit triangle at edges: 1% of the mean per pixel on ≥ 95% of
+        // pixels, and the number of valid rays equal on ≥ 95%.
+        let (bad, worst) = mismatch(&g, &c, 0.01);
+        eprintln!("view {view}: {:.2}% of pixels over 1%, worst {worst:.4}", bad * 100.0);
+        assert!(bad <= 0.05, "view {view}: {:.1}% of pixels differ (worst {worst:.3})", bad * 100.0);
+        let same_valid = g.iter().zip(&c).filter(|(a, b)| a[3] == b[3]).count();
+        assert!(same_valid * 20 >= g.len() * 19, "view {view}: valid ray counts differ");
+        assert!(c.iter().filter(|p| p[3] > 0.0).count() * 2 > c.len(), "most pixels must have irradiance");
+    }
+    common::assert_no_validation_errors(&gpu);
+}
