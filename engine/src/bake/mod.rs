@@ -1,9 +1,11 @@
 //! The bake (§4.1–4.2): per-view maps computed once per scene from the input views.
 //! One pass per file, each named after the paper's term, each with its CPU reference.
 
+pub mod albedo_mesh;
 pub mod random;
 pub mod source_irradiance;
 pub mod views;
 
+pub use albedo_mesh::AlbedoMesh;
 pub use source_irradiance::SourceIrradiance;
 pub use views::{GpuViews, ViewData};
