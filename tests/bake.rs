@@ -91,3 +91,24 @@ fn albedo_mesh_matches_cpu_reference() {
     assert!(seen * 5 > c.len(), "too few vertices seen");
     common::assert_no_validation_errors(&gpu);
 }
+
+#[test]
+fn mirror_images_match_cpu_reference() {
+    use relit_engine::bake::{mirror, Mirror};
+    let gpu = common::gpu();
+    let (t, rs) = tiny(&gpu);
+    let views = GpuViews::upload(&gpu, &t.data).unwrap();
+    let pass = Mirror::new(&gpu).unwrap();
+    let mut found = 0;
+    for view in 0..4u32 {
+        let g = pass.run(&rs, &views, view).unwrap();
+        let c = mirror::reference(&t.mesh, &t.data, view as usize);
+        // One ray per pixel: a pixel either matches exactly or its ray/view choice flipped on an
+        // edge; ≤ 3% of pixels may differ.
+        let (bad, _) = mismatch(&g, &c, 1e-4);
+        assert!(bad <= 0.03, "view {view}: {:.1}% of pixels differ", bad * 100.0);
+        found += c.iter().filter(|p| p[3] > 0.0).count();
+    }
+    assert!(found > 4 * 32 * 24 / 4, "mirror rays should mostly find a view ({found})");
+    common::assert_no_validation_errors(&gpu);
+}

@@ -40,15 +40,7 @@ void main() {
         while (rayQueryProceedEXT(rq)) {}
         if (rayQueryGetIntersectionTypeEXT(rq, true) != gl_RayQueryCommittedIntersectionTriangleEXT) continue;
         vec3 y = x + n * 1e-3 + d * rayQueryGetIntersectionTEXT(rq, true);
-        float best = -2.0;
-        int best_px = -1;
-        for (uint j = 0u; j < pc.nviews; ++j) {
-            if (j == pc.view) continue;
-            int q = visible_pixel(j, y, pc.width, pc.height);
-            if (q < 0) continue;
-            float c = dot(normalize(y - cam_center(cams[j])), d);
-            if (c > best) { best = c; best_px = q; }
-        }
+        int best_px = best_view(y, d, pc.view, pc.nviews, pc.width, pc.height);
         if (best_px < 0) continue;
         sum += images[best_px].rgb;
         valid += 1u;

@@ -28,4 +28,20 @@ int visible_pixel(uint j, vec3 p, uint W, uint H) {
     return int(idx);
 }
 
+// The pixel (global index) of the view, other than `exclude`, that sees y from the direction
+// closest to `dir` (largest cos between camera→y and dir); -1 when no view sees y.
+// Source irradiance (§4.1.1) and mirror images (§4.2) both choose their view this way.
+int best_view(vec3 y, vec3 dir, uint exclude, uint nviews, uint W, uint H) {
+    float best = -2.0;
+    int best_px = -1;
+    for (uint j = 0u; j < nviews; ++j) {
+        if (j == exclude) continue;
+        int q = visible_pixel(j, y, W, H);
+        if (q < 0) continue;
+        float c = dot(normalize(y - cam_center(cams[j])), dir);
+        if (c > best) { best = c; best_px = q; }
+    }
+    return best_px;
+}
+
 #endif

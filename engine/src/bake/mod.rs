@@ -2,10 +2,12 @@
 //! One pass per file, each named after the paper's term, each with its CPU reference.
 
 pub mod albedo_mesh;
+pub mod mirror;
 pub mod random;
 pub mod source_irradiance;
 pub mod views;
 
 pub use albedo_mesh::AlbedoMesh;
+pub use mirror::Mirror;
 pub use source_irradiance::SourceIrradiance;
 pub use views::{GpuViews, ViewData};

@@ -79,19 +79,7 @@ pub fn reference(mesh: &Mesh, d: &ViewData, view: usize, samples: u32, seed: u32
                 let o = x + n * 1e-3;
                 let Some(h) = crate::cpu::closest_hit(mesh, o, dir, 1e-3, 1e4) else { continue };
                 let y = o + dir * h.t;
-                let mut best = (-2.0f32, None);
-                for j in 0..d.cameras.len() {
-                    if j == view {
-                        continue;
-                    }
-                    if let Some(q) = d.visible_pixel(j, y) {
-                        let c = (y - d.cameras[j].center()).normalize().dot(dir);
-                        if c > best.0 {
-                            best = (c, Some(q));
-                        }
-                    }
-                }
-                if let Some(q) = best.1 {
+                if let Some(q) = d.best_view(y, dir, view) {
                     sum += Vec3::from_slice(&d.img[q][..3]);
                     valid += 1;
                 }

@@ -68,6 +68,23 @@ impl ViewData {
         let d = self.pos[idx][3];
         (d > 0.0 && (d - q.z).abs() <= DEPTH_EPS * q.z).then_some(idx)
     }
+
+    /// CPU mirror of `best_view` in views.glsl.
+    pub fn best_view(&self, y: Vec3, dir: Vec3, exclude: usize) -> Option<usize> {
+        let mut best = (-2.0f32, None);
+        for j in 0..self.cameras.len() {
+            if j == exclude {
+                continue;
+            }
+            if let Some(q) = self.visible_pixel(j, y) {
+                let c = (y - self.cameras[j].center()).normalize().dot(dir);
+                if c > best.0 {
+                    best = (c, Some(q));
+                }
+            }
+        }
+        best.1
+    }
 }
 
 /// Keep in step with `DEPTH_EPS` in views.glsl.
