@@ -1,12 +1,14 @@
 //! The bake (§4.1–4.2): per-view maps computed once per scene from the input views.
 //! One pass per file, each named after the paper's term, each with its CPU reference.
 
+pub mod added_irradiance;
 pub mod albedo_mesh;
 pub mod mirror;
 pub mod random;
 pub mod source_irradiance;
 pub mod views;
 
+pub use added_irradiance::{AddedIrradiance, AddedParams, GpuLight};
 pub use albedo_mesh::AlbedoMesh;
 pub use mirror::Mirror;
 pub use source_irradiance::SourceIrradiance;

@@ -1,0 +1,188 @@
+//! Added irradiance `E_add_i,l` (§4.1.3): `shaders_glsl/bake/added_irradiance.comp`. One map per
+//! view and user light, so that light intensities mix linearly at run time.
+
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use super::random::{onb, cosine_dir, rand2};
+use super::views::{facing_normal, GpuViews, ViewData};
+use crate::error::Result;
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, RayScene};
+use crate::scene::{Light, LightShape, Mesh};
+
+/// A light as `common/lights.glsl` reads it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuLight {
+    pub p0: [f32; 4],
+    pub p1: [f32; 4],
+    pub p2: [f32; 4],
+    pub radiance: [f32; 4],
+}
+
+impl GpuLight {
+    pub fn new(l: &Light) -> GpuLight {
+        let r = [l.radiance[0], l.radiance[1], l.radiance[2], 0.0];
+        match l.shape {
+            LightShape::Quad { corner, edge_u, edge_v } => GpuLight {
+                p0: corner.extend(0.0).into(),
+                p1: edge_u.extend(0.0).into(),
+                p2: edge_v.extend(0.0).into(),
+                radiance: r,
+            },
+            LightShape::Disk { center, normal, radius } => GpuLight {
+                p0: center.extend(1.0).into(),
+                p1: normal.extend(0.0).into(),
+                p2: [radius, 0.0, 0.0, 0.0],
+                radiance: r,
+            },
+        }
+    }
+
+    /// CPU mirror of `light_sample`: point, normal, area.
+    pub fn sample(&self, u: [f32; 2]) -> (Vec3, Vec3, f32) {
+        let v = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
+        if self.p0[3] < 0.5 {
+            let c = v(self.p1).cross(v(self.p2));
+            let area = c.length();
+            (v(self.p0) + u[0] * v(self.p1) + u[1] * v(self.p2), c / area, area)
+        } else {
+            let n = v(self.p1).normalize();
+            let r = self.p2[0];
+            let (t, b) = onb(n);
+            let rr = r * u[0].sqrt();
+            let phi = 6.283_185_3 * u[1];
+            (v(self.p0) + t * (rr * phi.cos()) + b * (rr * phi.sin()), n, std::f32::consts::PI * r * r)
+        }
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Push {
+    view: u32,
+    width: u32,
+    height: u32,
+    samples: u32,
+    seed: u32,
+    bounces: u32,
+    pad: [u32; 2],
+    light: GpuLight,
+}
+
+pub struct AddedIrradiance {
+    pipeline: Pipeline,
+}
+
+/// Samples, bounces and seed of the added-irradiance path tracer.
+#[derive(Clone, Copy, Debug)]
+pub struct AddedParams {
+    pub samples: u32,
+    pub bounces: u32,
+    pub seed: u32,
+}
+
+impl AddedIrradiance {
+    pub fn new(gpu: &Arc<Gpu>) -> Result<AddedIrradiance> {
+        Ok(AddedIrradiance { pipeline: Pipeline::compute(gpu, "bake/added_irradiance.comp")? })
+    }
+
+    /// Records E_add of `view` for `light` into `out` (vec4 per pixel). `albedo`: per-vertex vec4.
+    #[allow(clippy::too_many_arguments)]
+    pub fn record(
+        &self,
+        cmd: vk::CommandBuffer,
+        mesh: &RayScene,
+        views: &GpuViews,
+        albedo: &Buffer,
+        view: u32,
+        light: &GpuLight,
+        p: AddedParams,
+        out: &Buffer,
+    ) -> Result<()> {
+        let push = Push {
+            view,
+            width: views.width,
+            height: views.height,
+            samples: p.samples,
+            seed: p.seed,
+            bounces: p.bounces,
+            pad: [0; 2],
+            light: *light,
+        };
+        let mut binds = vec![
+            (0, Bind::Accel(mesh.tlas.raw)),
+            (5, Bind::Buffer(&mesh.positions)),
+            (6, Bind::Buffer(&mesh.indices)),
+            (7, Bind::Buffer(albedo)),
+            (8, Bind::Buffer(out)),
+        ];
+        binds.extend(views.binds(1));
+        self.pipeline.dispatch(cmd, &binds, bytes_of(&push), (views.width * views.height, 1, 1))
+    }
+
+    pub fn run(&self, mesh: &RayScene, views: &GpuViews, albedo: &Buffer, view: u32, light: &GpuLight, p: AddedParams) -> Result<Vec<[f32; 4]>> {
+        let gpu = &self.pipeline.gpu;
+        let n = (views.width * views.height) as u64;
+        let out = Buffer::new(gpu, "e_add", n * 16, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuOnly)?;
+        let mut res = Ok(());
+        gpu.submit(|cmd| res = self.record(cmd, mesh, views, albedo, view, light, p, &out))?;
+        res?;
+        let mut v: Vec<[f32; 4]> = out.download_vec()?;
+        v.truncate(n as usize);
+        Ok(v)
+    }
+}
+
+/// CPU reference of the same path tracer.
+pub fn reference(mesh: &Mesh, d: &ViewData, albedo: &[[f32; 4]], view: usize, light: &GpuLight, p: AddedParams) -> Vec<[f32; 4]> {
+    let npix = d.pixels();
+    let radiance = Vec3::new(light.radiance[0], light.radiance[1], light.radiance[2]);
+    let direct = |x: Vec3, n: Vec3, u: [f32; 2]| {
+        let (lp, ln, area) = light.sample(u);
+        let w = lp - x;
+        let d2 = w.length_squared();
+        let dist = d2.sqrt();
+        let w = w / dist;
+        let (cx, cl) = (n.dot(w), -ln.dot(w));
+        if cx <= 0.0 || cl <= 0.0 || crate::cpu::occluded(mesh, x + n * 1e-3, w, 1e-3, dist - 2e-3) {
+            return Vec3::ZERO;
+        }
+        radiance * (cx * cl * area / d2)
+    };
+    (0..npix)
+        .map(|px| {
+            let gi = view * npix + px;
+            if d.pos[gi][3] <= 0.0 {
+                return [0.0; 4];
+            }
+            let n0 = facing_normal(d, gi, view);
+            let mut sum = Vec3::ZERO;
+            for s in 0..p.samples {
+                let (mut x, mut n, mut thr) = (Vec3::from_slice(&d.pos[gi][..3]), n0, Vec3::ONE);
+                for b in 0..=p.bounces {
+                    let k = s * 64 + 2 * b;
+                    sum += thr * direct(x, n, rand2([gi as u32, k, p.seed]));
+                    if b == p.bounces {
+                        break;
+                    }
+                    let dir = cosine_dir(n, rand2([gi as u32, k + 1, p.seed]));
+                    let o = x + n * 1e-3;
+                    let Some(h) = crate::cpu::closest_hit(mesh, o, dir, 1e-3, 1e4) else { break };
+                    let t = mesh.triangles[h.tri as usize];
+                    x = o + dir * h.t;
+                    n = mesh.face_normal(h.tri as usize);
+                    if n.dot(dir) > 0.0 {
+                        n = -n;
+                    }
+                    let a = |i: u32| Vec3::from_slice(&albedo[i as usize][..3]);
+                    let rho = (1.0 - h.bary[0] - h.bary[1]) * a(t[0]) + h.bary[0] * a(t[1]) + h.bary[1] * a(t[2]);
+                    thr *= rho.clamp(Vec3::ZERO, Vec3::ONE);
+                }
+            }
+            let e = sum / p.samples as f32;
+            [e.x, e.y, e.z, 1.0]
+        })
+        .collect()
+}

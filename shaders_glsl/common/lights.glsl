@@ -1,0 +1,33 @@
+// Area lights for the bake and frame passes: a quad (corner, edge_u, edge_v; emits on the side
+// of edge_u × edge_v) or a disk (centre, normal, radius), constant radiance, one-sided.
+#ifndef RELIT_LIGHTS_GLSL
+#define RELIT_LIGHTS_GLSL
+#include "random.glsl"
+
+struct Light {
+    vec4 p0;        // quad: corner; disk: centre          (w: 0 = quad, 1 = disk)
+    vec4 p1;        // quad: edge_u; disk: normal
+    vec4 p2;        // quad: edge_v; disk: (radius, -, -)
+    vec4 radiance;  // rgb
+};
+
+// A point on the light for u in [0,1)^2, its normal, and the light's area.
+void light_sample(Light l, vec2 u, out vec3 p, out vec3 n, out float area) {
+    if (l.p0.w < 0.5) {
+        vec3 c = cross(l.p1.xyz, l.p2.xyz);
+        area = length(c);
+        n = c / area;
+        p = l.p0.xyz + u.x * l.p1.xyz + u.y * l.p2.xyz;
+    } else {
+        n = normalize(l.p1.xyz);
+        float r = l.p2.x;
+        vec3 t, b;
+        onb(n, t, b);
+        float rr = r * sqrt(u.x);
+        float phi = 6.28318530718 * u.y;
+        p = l.p0.xyz + t * (rr * cos(phi)) + b * (rr * sin(phi));
+        area = 3.14159265359 * r * r;
+    }
+}
+
+#endif
