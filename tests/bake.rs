@@ -13,11 +13,20 @@ struct Tiny {
 }
 
 fn tiny(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>) -> (Tiny, RayScene) {
-    let o = SynthOptions { views: 4, width: 32, height: 24, seed: 3, wall_subdiv: 2 };
+    let o = SynthOptions {
+        views: 4,
+        width: 32,
+        height: 24,
+        seed: 3,
+        wall_subdiv: 2,
+    };
     let (mesh, albedo) = synth::room(o.wall_subdiv);
     let (lights, _) = synth::room_lights();
     let cams = synth::capture_cameras(&o);
-    let imgs: Vec<_> = cams.iter().map(|c| synth::shade(&mesh, &albedo, c, &lights[0])).collect();
+    let imgs: Vec<_> = cams
+        .iter()
+        .map(|c| synth::shade(&mesh, &albedo, c, &lights[0]))
+        .collect();
     let rs = RayScene::new(gpu, &mesh.positions, &mesh.triangles).unwrap();
     let data = ViewData::build(gpu, &rs, &cams, &imgs).unwrap();
     (Tiny { mesh, data }, rs)
@@ -51,11 +60,24 @@ fn source_irradiance_matches_cpu_reference() {
         // flip a ray's best view or hit triangle at edges: 1% of the mean per pixel on ≥ 95% of
         // pixels, and the number of valid rays equal on ≥ 95%.
         let (bad, worst) = mismatch(&g, &c, 0.01);
-        eprintln!("view {view}: {:.2}% of pixels over 1%, worst {worst:.4}", bad * 100.0);
-        assert!(bad <= 0.05, "view {view}: {:.1}% of pixels differ (worst {worst:.3})", bad * 100.0);
+        eprintln!(
+            "view {view}: {:.2}% of pixels over 1%, worst {worst:.4}",
+            bad * 100.0
+        );
+        assert!(
+            bad <= 0.05,
+            "view {view}: {:.1}% of pixels differ (worst {worst:.3})",
+            bad * 100.0
+        );
         let same_valid = g.iter().zip(&c).filter(|(a, b)| a[3] == b[3]).count();
-        assert!(same_valid * 20 >= g.len() * 19, "view {view}: valid ray counts differ");
-        assert!(c.iter().filter(|p| p[3] > 0.0).count() * 2 > c.len(), "most pixels must have irradiance");
+        assert!(
+            same_valid * 20 >= g.len() * 19,
+            "view {view}: valid ray counts differ"
+        );
+        assert!(
+            c.iter().filter(|p| p[3] > 0.0).count() * 2 > c.len(),
+            "most pixels must have irradiance"
+        );
     }
     common::assert_no_validation_errors(&gpu);
 }
@@ -73,7 +95,10 @@ fn albedo_mesh_matches_cpu_reference() {
         e_all.extend(si.run(&rs, &views, v, 16, 1).unwrap());
     }
     let eb = Buffer::from_slice(&gpu, "e", vk::BufferUsageFlags::STORAGE_BUFFER, &e_all).unwrap();
-    let g = AlbedoMesh::new(&gpu).unwrap().run(&rs, t.mesh.positions.len() as u32, &views, &eb).unwrap();
+    let g = AlbedoMesh::new(&gpu)
+        .unwrap()
+        .run(&rs, t.mesh.positions.len() as u32, &views, &eb)
+        .unwrap();
     let c = albedo_mesh::reference(&t.mesh.positions, &t.data, &e_all);
     // Tolerance: 1e-4 relative per channel on every vertex but those where fp rounding flips
     // a depth test (≤ 2%).
@@ -106,10 +131,17 @@ fn mirror_images_match_cpu_reference() {
         // One ray per pixel: a pixel either matches exactly or its ray/view choice flipped on an
         // edge; ≤ 3% of pixels may differ.
         let (bad, _) = mismatch(&g, &c, 1e-4);
-        assert!(bad <= 0.03, "view {view}: {:.1}% of pixels differ", bad * 100.0);
+        assert!(
+            bad <= 0.03,
+            "view {view}: {:.1}% of pixels differ",
+            bad * 100.0
+        );
         found += c.iter().filter(|p| p[3] > 0.0).count();
     }
-    assert!(found > 4 * 32 * 24 / 4, "mirror rays should mostly find a view ({found})");
+    assert!(
+        found > 4 * 32 * 24 / 4,
+        "mirror rays should mostly find a view ({found})"
+    );
     common::assert_no_validation_errors(&gpu);
 }
 
@@ -122,12 +154,28 @@ fn added_irradiance_matches_cpu_reference() {
     let views = GpuViews::upload(&gpu, &t.data).unwrap();
     // A known albedo (0.6 grey, 0.3 on the second half of the vertices) isolates this pass.
     let albedo: Vec<[f32; 4]> = (0..t.mesh.positions.len())
-        .map(|i| if i * 2 < t.mesh.positions.len() { [0.6, 0.6, 0.6, 1.0] } else { [0.3, 0.2, 0.1, 1.0] })
+        .map(|i| {
+            if i * 2 < t.mesh.positions.len() {
+                [0.6, 0.6, 0.6, 1.0]
+            } else {
+                [0.3, 0.2, 0.1, 1.0]
+            }
+        })
         .collect();
-    let ab = Buffer::from_slice(&gpu, "albedo", vk::BufferUsageFlags::STORAGE_BUFFER, &albedo).unwrap();
+    let ab = Buffer::from_slice(
+        &gpu,
+        "albedo",
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        &albedo,
+    )
+    .unwrap();
     let pass = AddedIrradiance::new(&gpu).unwrap();
     let (lights, _) = synth::room_lights();
-    let p = AddedParams { samples: 8, bounces: 2, seed: 5 };
+    let p = AddedParams {
+        samples: 8,
+        bounces: 2,
+        seed: 5,
+    };
     for light in &lights {
         let gl = GpuLight::new(light);
         for view in [0u32, 2] {
@@ -136,10 +184,217 @@ fn added_irradiance_matches_cpu_reference() {
             // Same random numbers; a shadow ray grazing an edge may flip: 2% of the image mean
             // per pixel on ≥ 95% of pixels.
             let (bad, worst) = mismatch(&g, &c, 0.02);
-            eprintln!("{} view {view}: {:.2}% over 2%, worst {worst:.4}", light.name, bad * 100.0);
-            assert!(bad <= 0.05, "{} view {view}: {:.1}% of pixels differ", light.name, bad * 100.0);
-            assert!(c.iter().any(|p| p[0] > 0.0), "the light must reach the view");
+            eprintln!(
+                "{} view {view}: {:.2}% over 2%, worst {worst:.4}",
+                light.name,
+                bad * 100.0
+            );
+            assert!(
+                bad <= 0.05,
+                "{} view {view}: {:.1}% of pixels differ",
+                light.name,
+                bad * 100.0
+            );
+            assert!(
+                c.iter().any(|p| p[0] > 0.0),
+                "the light must reach the view"
+            );
         }
     }
     common::assert_no_validation_errors(&gpu);
+}
+
+/// A small scenegen scene with images from the CPU shader (no Mitsuba needed): the bake's
+/// control flow (cache, resume, slices) does not depend on image realism.
+fn bake_scene(name: &str) -> std::path::PathBuf {
+    let dir = common::tempdir(name);
+    let opts = relit_scenegen::room::RoomOptions {
+        views: 4,
+        width: 24,
+        height: 18,
+        extra_lights: 2,
+        test_views: 1,
+    };
+    let s = relit_scenegen::generate(&dir, 8, &opts).unwrap();
+    let (lights, _) = synth::room_lights();
+    for v in &s.views {
+        let img = synth::shade(
+            &s.mesh,
+            &vec![[0.5; 3]; s.mesh.triangles.len()],
+            &v.camera,
+            &lights[0],
+        );
+        relit_engine::scene::image::write_exr(&v.image, &img).unwrap();
+    }
+    dir
+}
+
+fn relit(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_relit"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn cache_files(dir: &std::path::Path) -> Vec<(String, Vec<u8>)> {
+    let cache = std::fs::read_dir(dir.join(".relit"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let mut v: Vec<_> = std::fs::read_dir(&cache)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .map(|p| {
+            (
+                p.file_name().unwrap().to_string_lossy().into_owned(),
+                std::fs::read(&p).unwrap(),
+            )
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
+    let args = |d: &std::path::Path| {
+        vec![
+            "bake".to_string(),
+            d.to_str().unwrap().to_string(),
+            "--quality".into(),
+            "preview".into(),
+            "--rays".into(),
+            "64".into(),
+        ]
+    };
+    // Reference: one uninterrupted bake.
+    let a = bake_scene("bake-ref");
+    let out = relit(&args(&a).iter().map(|s| s.as_str()).collect::<Vec<_>>());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let reference = cache_files(&a);
+    assert_eq!(
+        reference.len(),
+        1 + 4 * (2 + 2),
+        "albedo + per view: E_src, M_src, 2 × E_add"
+    );
+
+    // Killed as soon as the first view's map lands, then resumed.
+    let b = bake_scene("bake-kill");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_relit"))
+        .args(args(&b))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    loop {
+        let n = std::fs::read_dir(b.join(".relit"))
+            .ok()
+            .and_then(|mut r| r.next())
+            .and_then(|e| e.ok())
+            .map(|e| {
+                std::fs::read_dir(e.path())
+                    .map(|r| {
+                        r.filter(|f| {
+                            f.as_ref()
+                                .unwrap()
+                                .file_name()
+                                .to_string_lossy()
+                                .ends_with(".esrc.exr")
+                        })
+                        .count()
+                    })
+                    .unwrap_or(0)
+            });
+        if n.unwrap_or(0) >= 1
+            || child.try_wait().unwrap().is_some()
+            || t0.elapsed().as_secs() > 120
+        {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let _ = child.kill(); // SIGKILL: no cleanup runs
+    let _ = child.wait();
+    let partial = cache_files(&b).len();
+    eprintln!(
+        "killed with {partial} of {} cache files written",
+        reference.len()
+    );
+    let out = relit(&args(&b).iter().map(|s| s.as_str()).collect::<Vec<_>>());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let resumed = cache_files(&b);
+    assert!(partial < resumed.len() || partial == reference.len());
+    assert_eq!(
+        resumed.iter().map(|f| &f.0).collect::<Vec<_>>(),
+        reference.iter().map(|f| &f.0).collect::<Vec<_>>()
+    );
+    for (x, y) in resumed.iter().zip(&reference) {
+        assert!(x.1 == y.1, "{} differs from the uninterrupted bake", x.0);
+    }
+    // A second run computes nothing.
+    let out = relit(&args(&b).iter().map(|s| s.as_str()).collect::<Vec<_>>());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("source irradiance: cached") && text.contains("added irradiance: cached"),
+        "{text}"
+    );
+}
+
+#[test]
+fn view_slices_bake_separately_and_join() {
+    let d = bake_scene("bake-slices");
+    let s = d.to_str().unwrap();
+    let out = relit(&[
+        "bake",
+        s,
+        "--quality",
+        "preview",
+        "--rays",
+        "16",
+        "--views",
+        "0..2",
+    ]);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("wait for every view"), "{text}");
+    assert_eq!(cache_files(&d).len(), 2, "only the slice's E_src");
+    let out = relit(&[
+        "bake",
+        s,
+        "--quality",
+        "preview",
+        "--rays",
+        "16",
+        "--views",
+        "2..4",
+    ]);
+    assert!(out.status.success());
+    assert_eq!(
+        cache_files(&d).len(),
+        1 + 4 + 2 * (1 + 2),
+        "albedo, 4 E_src, then slice 2..4's maps"
+    );
+    let out = relit(&[
+        "bake",
+        s,
+        "--quality",
+        "preview",
+        "--rays",
+        "16",
+        "--views",
+        "3..9",
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("3..9"));
 }

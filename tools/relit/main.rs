@@ -36,11 +36,48 @@ enum Cmd {
         #[command(subcommand)]
         cmd: SceneCmd,
     },
+    /// Bake a scene's per-view maps (§4.1–4.2) into its cache (SCENE/.relit/bake-<key>/).
+    Bake {
+        scene: PathBuf,
+        /// A slice of views, A..B (to split a big capture across jobs).
+        #[arg(long, value_parser = parse_range)]
+        views: Option<std::ops::Range<usize>>,
+        #[arg(long, value_enum, default_value = "final")]
+        quality: Quality,
+        /// Rays per pixel for the source irradiance (overrides the quality preset).
+        #[arg(long)]
+        rays: Option<u32>,
+        /// Paths per pixel for the added irradiance (overrides the quality preset).
+        #[arg(long)]
+        added_samples: Option<u32>,
+    },
     /// Benchmarks (GPU timestamps; figures, never pass/fail).
     Bench {
         #[command(subcommand)]
         cmd: bench::BenchCmd,
     },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Quality {
+    Preview,
+    Final,
+}
+
+fn parse_range(s: &str) -> Result<std::ops::Range<usize>, String> {
+    let (a, b) = s
+        .split_once("..")
+        .ok_or_else(|| format!("\"{s}\": expected A..B"))?;
+    let a: usize = a
+        .parse()
+        .map_err(|_| format!("\"{s}\": {a} is not a view index"))?;
+    let b: usize = b
+        .parse()
+        .map_err(|_| format!("\"{s}\": {b} is not a view index"))?;
+    if a >= b {
+        return Err(format!("\"{s}\": empty range"));
+    }
+    Ok(a..b)
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -291,6 +328,60 @@ fn scene_check(dir: &std::path::Path, quick: bool) -> Result<()> {
     Ok(())
 }
 
+fn bake(
+    dir: &std::path::Path,
+    p: &relit_engine::bake::BakeParams,
+    opts: &GpuOptions,
+) -> Result<()> {
+    let scene = Scene::load(dir)?;
+    let gpu = open_gpu(opts)?;
+    let t0 = std::time::Instant::now();
+    let mut bars: Vec<(String, indicatif::ProgressBar)> = Vec::new();
+    let multi = indicatif::MultiProgress::new();
+    let style = indicatif::ProgressStyle::with_template(
+        "{prefix:>26} {bar:30} {pos}/{len} {msg} ETA {eta}",
+    )
+    .unwrap();
+    let mut progress = |stage: &str, done: usize, total: usize, rays: u64| {
+        if bars.last().is_none_or(|(s, _)| s != stage) {
+            let b = multi.add(indicatif::ProgressBar::new(total as u64));
+            b.set_style(style.clone());
+            b.set_prefix(stage.to_string());
+            bars.push((stage.to_string(), b));
+        }
+        let (_, b) = bars.last().unwrap();
+        b.set_position(done as u64);
+        let secs = b.elapsed().as_secs_f64().max(1e-3);
+        if rays > 0 {
+            b.set_message(format!("{:.2} M rays/s", rays as f64 / secs * 1e-6));
+        }
+    };
+    let report = relit_engine::bake::bake(&gpu, &scene, p, &mut progress)?;
+    for (_, b) in &bars {
+        b.finish();
+    }
+    println!("cache: {}", report.cache.display());
+    for (stage, secs, rays, items) in &report.stages {
+        if *items == 0 {
+            println!("  {stage}: cached");
+        } else {
+            println!(
+                "  {stage}: {items} item(s) in {secs:.1} s{}",
+                if *rays > 0 {
+                    format!(", {:.2} M rays/s", *rays as f64 / secs.max(1e-9) * 1e-6)
+                } else {
+                    String::new()
+                }
+            );
+        }
+    }
+    if !report.albedo_mesh {
+        println!("albedo mesh and later stages wait for every view's source irradiance (bake the other slices)");
+    }
+    println!("done in {:.1} s", t0.elapsed().as_secs_f64());
+    Ok(())
+}
+
 fn main() {
     let cli = Cli::parse();
     let opts = gpu_options(&cli);
@@ -332,6 +423,26 @@ fn main() {
                 .map_err(Into::into)
         }
         Cmd::Bench { cmd } => bench::run(cmd, &opts),
+        Cmd::Bake {
+            scene,
+            views,
+            quality,
+            rays,
+            added_samples,
+        } => {
+            let mut p = match quality {
+                Quality::Preview => relit_engine::bake::BakeParams::preview(),
+                Quality::Final => relit_engine::bake::BakeParams::final_quality(),
+            };
+            p.views = views.clone();
+            if let Some(r) = rays {
+                p.irradiance_samples = *r;
+            }
+            if let Some(a) = added_samples {
+                p.added_samples = *a;
+            }
+            bake(scene, &p, &opts)
+        }
     };
     if let Err(e) = res {
         eprintln!("error: {e:#}");

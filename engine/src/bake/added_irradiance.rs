@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use super::random::{onb, cosine_dir, rand2};
+use super::random::{cosine_dir, onb, rand2};
 use super::views::{facing_normal, GpuViews, ViewData};
 use crate::error::Result;
 use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, RayScene};
@@ -25,13 +25,21 @@ impl GpuLight {
     pub fn new(l: &Light) -> GpuLight {
         let r = [l.radiance[0], l.radiance[1], l.radiance[2], 0.0];
         match l.shape {
-            LightShape::Quad { corner, edge_u, edge_v } => GpuLight {
+            LightShape::Quad {
+                corner,
+                edge_u,
+                edge_v,
+            } => GpuLight {
                 p0: corner.extend(0.0).into(),
                 p1: edge_u.extend(0.0).into(),
                 p2: edge_v.extend(0.0).into(),
                 radiance: r,
             },
-            LightShape::Disk { center, normal, radius } => GpuLight {
+            LightShape::Disk {
+                center,
+                normal,
+                radius,
+            } => GpuLight {
                 p0: center.extend(1.0).into(),
                 p1: normal.extend(0.0).into(),
                 p2: [radius, 0.0, 0.0, 0.0],
@@ -46,14 +54,22 @@ impl GpuLight {
         if self.p0[3] < 0.5 {
             let c = v(self.p1).cross(v(self.p2));
             let area = c.length();
-            (v(self.p0) + u[0] * v(self.p1) + u[1] * v(self.p2), c / area, area)
+            (
+                v(self.p0) + u[0] * v(self.p1) + u[1] * v(self.p2),
+                c / area,
+                area,
+            )
         } else {
             let n = v(self.p1).normalize();
             let r = self.p2[0];
             let (t, b) = onb(n);
             let rr = r * u[0].sqrt();
             let phi = 6.283_185_3 * u[1];
-            (v(self.p0) + t * (rr * phi.cos()) + b * (rr * phi.sin()), n, std::f32::consts::PI * r * r)
+            (
+                v(self.p0) + t * (rr * phi.cos()) + b * (rr * phi.sin()),
+                n,
+                std::f32::consts::PI * r * r,
+            )
         }
     }
 }
@@ -85,7 +101,9 @@ pub struct AddedParams {
 
 impl AddedIrradiance {
     pub fn new(gpu: &Arc<Gpu>) -> Result<AddedIrradiance> {
-        Ok(AddedIrradiance { pipeline: Pipeline::compute(gpu, "bake/added_irradiance.comp")? })
+        Ok(AddedIrradiance {
+            pipeline: Pipeline::compute(gpu, "bake/added_irradiance.comp")?,
+        })
     }
 
     /// Records E_add of `view` for `light` into `out` (vec4 per pixel). `albedo`: per-vertex vec4.
@@ -119,13 +137,32 @@ impl AddedIrradiance {
             (8, Bind::Buffer(out)),
         ];
         binds.extend(views.binds(1));
-        self.pipeline.dispatch(cmd, &binds, bytes_of(&push), (views.width * views.height, 1, 1))
+        self.pipeline.dispatch(
+            cmd,
+            &binds,
+            bytes_of(&push),
+            (views.width * views.height, 1, 1),
+        )
     }
 
-    pub fn run(&self, mesh: &RayScene, views: &GpuViews, albedo: &Buffer, view: u32, light: &GpuLight, p: AddedParams) -> Result<Vec<[f32; 4]>> {
+    pub fn run(
+        &self,
+        mesh: &RayScene,
+        views: &GpuViews,
+        albedo: &Buffer,
+        view: u32,
+        light: &GpuLight,
+        p: AddedParams,
+    ) -> Result<Vec<[f32; 4]>> {
         let gpu = &self.pipeline.gpu;
         let n = (views.width * views.height) as u64;
-        let out = Buffer::new(gpu, "e_add", n * 16, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuOnly)?;
+        let out = Buffer::new(
+            gpu,
+            "e_add",
+            n * 16,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::GpuOnly,
+        )?;
         let mut res = Ok(());
         gpu.submit(|cmd| res = self.record(cmd, mesh, views, albedo, view, light, p, &out))?;
         res?;
@@ -136,7 +173,14 @@ impl AddedIrradiance {
 }
 
 /// CPU reference of the same path tracer.
-pub fn reference(mesh: &Mesh, d: &ViewData, albedo: &[[f32; 4]], view: usize, light: &GpuLight, p: AddedParams) -> Vec<[f32; 4]> {
+pub fn reference(
+    mesh: &Mesh,
+    d: &ViewData,
+    albedo: &[[f32; 4]],
+    view: usize,
+    light: &GpuLight,
+    p: AddedParams,
+) -> Vec<[f32; 4]> {
     let npix = d.pixels();
     let radiance = Vec3::new(light.radiance[0], light.radiance[1], light.radiance[2]);
     let direct = |x: Vec3, n: Vec3, u: [f32; 2]| {
@@ -146,7 +190,8 @@ pub fn reference(mesh: &Mesh, d: &ViewData, albedo: &[[f32; 4]], view: usize, li
         let dist = d2.sqrt();
         let w = w / dist;
         let (cx, cl) = (n.dot(w), -ln.dot(w));
-        if cx <= 0.0 || cl <= 0.0 || crate::cpu::occluded(mesh, x + n * 1e-3, w, 1e-3, dist - 2e-3) {
+        if cx <= 0.0 || cl <= 0.0 || crate::cpu::occluded(mesh, x + n * 1e-3, w, 1e-3, dist - 2e-3)
+        {
             return Vec3::ZERO;
         }
         radiance * (cx * cl * area / d2)
@@ -169,7 +214,9 @@ pub fn reference(mesh: &Mesh, d: &ViewData, albedo: &[[f32; 4]], view: usize, li
                     }
                     let dir = cosine_dir(n, rand2([gi as u32, k + 1, p.seed]));
                     let o = x + n * 1e-3;
-                    let Some(h) = crate::cpu::closest_hit(mesh, o, dir, 1e-3, 1e4) else { break };
+                    let Some(h) = crate::cpu::closest_hit(mesh, o, dir, 1e-3, 1e4) else {
+                        break;
+                    };
                     let t = mesh.triangles[h.tri as usize];
                     x = o + dir * h.t;
                     n = mesh.face_normal(h.tri as usize);
@@ -177,7 +224,9 @@ pub fn reference(mesh: &Mesh, d: &ViewData, albedo: &[[f32; 4]], view: usize, li
                         n = -n;
                     }
                     let a = |i: u32| Vec3::from_slice(&albedo[i as usize][..3]);
-                    let rho = (1.0 - h.bary[0] - h.bary[1]) * a(t[0]) + h.bary[0] * a(t[1]) + h.bary[1] * a(t[2]);
+                    let rho = (1.0 - h.bary[0] - h.bary[1]) * a(t[0])
+                        + h.bary[0] * a(t[1])
+                        + h.bary[1] * a(t[2]);
                     thr *= rho.clamp(Vec3::ZERO, Vec3::ONE);
                 }
             }

@@ -23,19 +23,46 @@ pub struct AlbedoMesh {
 
 impl AlbedoMesh {
     pub fn new(gpu: &Arc<Gpu>) -> Result<AlbedoMesh> {
-        Ok(AlbedoMesh { pipeline: Pipeline::compute(gpu, "bake/albedo_mesh.comp")? })
+        Ok(AlbedoMesh {
+            pipeline: Pipeline::compute(gpu, "bake/albedo_mesh.comp")?,
+        })
     }
 
     /// Per-vertex albedo (rgb, w = weight sum; 0 where no view sees the vertex) from the E_src of
     /// all views (`e_src`: view-major vec4 per pixel).
-    pub fn run(&self, mesh: &RayScene, nverts: u32, views: &GpuViews, e_src: &Buffer) -> Result<Vec<[f32; 4]>> {
+    pub fn run(
+        &self,
+        mesh: &RayScene,
+        nverts: u32,
+        views: &GpuViews,
+        e_src: &Buffer,
+    ) -> Result<Vec<[f32; 4]>> {
         let gpu = &self.pipeline.gpu;
-        let out = Buffer::new(gpu, "albedo", nverts as u64 * 16, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuOnly)?;
-        let push = Push { nverts, width: views.width, height: views.height, nviews: views.count };
-        let mut binds = vec![(4, Bind::Buffer(&mesh.positions)), (5, Bind::Buffer(e_src)), (6, Bind::Buffer(&out))];
+        let out = Buffer::new(
+            gpu,
+            "albedo",
+            nverts as u64 * 16,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::GpuOnly,
+        )?;
+        let push = Push {
+            nverts,
+            width: views.width,
+            height: views.height,
+            nviews: views.count,
+        };
+        let mut binds = vec![
+            (4, Bind::Buffer(&mesh.positions)),
+            (5, Bind::Buffer(e_src)),
+            (6, Bind::Buffer(&out)),
+        ];
         binds.extend(views.binds(0));
         let mut res = Ok(());
-        gpu.submit(|cmd| res = self.pipeline.dispatch(cmd, &binds, bytes_of(&push), (nverts, 1, 1)))?;
+        gpu.submit(|cmd| {
+            res = self
+                .pipeline
+                .dispatch(cmd, &binds, bytes_of(&push), (nverts, 1, 1))
+        })?;
         res?;
         let mut v: Vec<[f32; 4]> = out.download_vec()?;
         v.truncate(nverts as usize);
@@ -51,7 +78,9 @@ pub fn reference(positions: &[[f32; 3]], d: &ViewData, e_src: &[[f32; 4]]) -> Ve
             let p = Vec3::from(*p);
             let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
             for j in 0..d.cameras.len() {
-                let Some(q) = d.visible_pixel(j, p) else { continue };
+                let Some(q) = d.visible_pixel(j, p) else {
+                    continue;
+                };
                 let e = e_src[q];
                 if e[3] <= 0.0 || e[0].max(e[1]).max(e[2]) <= 1e-6 {
                     continue;

@@ -24,21 +24,46 @@ pub struct Mirror {
 
 impl Mirror {
     pub fn new(gpu: &Arc<Gpu>) -> Result<Mirror> {
-        Ok(Mirror { pipeline: Pipeline::compute(gpu, "bake/mirror.comp")? })
+        Ok(Mirror {
+            pipeline: Pipeline::compute(gpu, "bake/mirror.comp")?,
+        })
     }
 
     /// Records M_src of `view` into `out` (vec4 per pixel: rgb, w = 1 where a view was found).
-    pub fn record(&self, cmd: vk::CommandBuffer, mesh: &RayScene, views: &GpuViews, view: u32, out: &Buffer) -> Result<()> {
-        let push = Push { view, width: views.width, height: views.height, nviews: views.count };
+    pub fn record(
+        &self,
+        cmd: vk::CommandBuffer,
+        mesh: &RayScene,
+        views: &GpuViews,
+        view: u32,
+        out: &Buffer,
+    ) -> Result<()> {
+        let push = Push {
+            view,
+            width: views.width,
+            height: views.height,
+            nviews: views.count,
+        };
         let mut binds = vec![(0, Bind::Accel(mesh.tlas.raw)), (5, Bind::Buffer(out))];
         binds.extend(views.binds(1));
-        self.pipeline.dispatch(cmd, &binds, bytes_of(&push), (views.width * views.height, 1, 1))
+        self.pipeline.dispatch(
+            cmd,
+            &binds,
+            bytes_of(&push),
+            (views.width * views.height, 1, 1),
+        )
     }
 
     pub fn run(&self, mesh: &RayScene, views: &GpuViews, view: u32) -> Result<Vec<[f32; 4]>> {
         let gpu = &self.pipeline.gpu;
         let n = (views.width * views.height) as u64;
-        let out = Buffer::new(gpu, "m_src", n * 16, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuOnly)?;
+        let out = Buffer::new(
+            gpu,
+            "m_src",
+            n * 16,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::GpuOnly,
+        )?;
         let mut res = Ok(());
         gpu.submit(|cmd| res = self.record(cmd, mesh, views, view, &out))?;
         res?;
@@ -63,7 +88,9 @@ pub fn reference(mesh: &Mesh, d: &ViewData, view: usize) -> Vec<[f32; 4]> {
             let v = (x - eye).normalize();
             let r = v - 2.0 * n.dot(v) * n;
             let o = x + n * 1e-3;
-            let Some(h) = crate::cpu::closest_hit(mesh, o, r, 1e-3, 1e4) else { return [0.0; 4] };
+            let Some(h) = crate::cpu::closest_hit(mesh, o, r, 1e-3, 1e4) else {
+                return [0.0; 4];
+            };
             match d.best_view(o + r * h.t, r, view) {
                 Some(q) => [d.img[q][0], d.img[q][1], d.img[q][2], 1.0],
                 None => [0.0; 4],

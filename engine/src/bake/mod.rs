@@ -5,11 +5,13 @@ pub mod added_irradiance;
 pub mod albedo_mesh;
 pub mod mirror;
 pub mod random;
+pub mod run;
 pub mod source_irradiance;
 pub mod views;
 
 pub use added_irradiance::{AddedIrradiance, AddedParams, GpuLight};
 pub use albedo_mesh::AlbedoMesh;
 pub use mirror::Mirror;
+pub use run::{bake, BakeParams, BakeReport, Progress};
 pub use source_irradiance::SourceIrradiance;
 pub use views::{GpuViews, ViewData};

@@ -27,7 +27,9 @@ pub struct SourceIrradiance {
 
 impl SourceIrradiance {
     pub fn new(gpu: &Arc<Gpu>) -> Result<SourceIrradiance> {
-        Ok(SourceIrradiance { pipeline: Pipeline::compute(gpu, "bake/source_irradiance.comp")? })
+        Ok(SourceIrradiance {
+            pipeline: Pipeline::compute(gpu, "bake/source_irradiance.comp")?,
+        })
     }
 
     /// Records E_src of `view` into `out` (one vec4 per pixel: rgb irradiance, w = rays used).
@@ -42,17 +44,42 @@ impl SourceIrradiance {
         seed: u32,
         out: &Buffer,
     ) -> Result<()> {
-        let push = Push { view, width: views.width, height: views.height, nviews: views.count, samples, seed };
+        let push = Push {
+            view,
+            width: views.width,
+            height: views.height,
+            nviews: views.count,
+            samples,
+            seed,
+        };
         let mut binds = vec![(0, Bind::Accel(mesh.tlas.raw)), (5, Bind::Buffer(out))];
         binds.extend(views.binds(1));
-        self.pipeline.dispatch(cmd, &binds, bytes_of(&push), (views.width * views.height, 1, 1))
+        self.pipeline.dispatch(
+            cmd,
+            &binds,
+            bytes_of(&push),
+            (views.width * views.height, 1, 1),
+        )
     }
 
     /// Runs one view and reads the result back.
-    pub fn run(&self, mesh: &RayScene, views: &GpuViews, view: u32, samples: u32, seed: u32) -> Result<Vec<[f32; 4]>> {
+    pub fn run(
+        &self,
+        mesh: &RayScene,
+        views: &GpuViews,
+        view: u32,
+        samples: u32,
+        seed: u32,
+    ) -> Result<Vec<[f32; 4]>> {
         let gpu = &self.pipeline.gpu;
         let n = (views.width * views.height) as u64;
-        let out = Buffer::new(gpu, "e_src", n * 16, vk::BufferUsageFlags::STORAGE_BUFFER, crate::gpu::MemoryLocation::GpuOnly)?;
+        let out = Buffer::new(
+            gpu,
+            "e_src",
+            n * 16,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            crate::gpu::MemoryLocation::GpuOnly,
+        )?;
         let mut res = Ok(());
         gpu.submit(|cmd| res = self.record(cmd, mesh, views, view, samples, seed, &out))?;
         res?;
@@ -77,14 +104,20 @@ pub fn reference(mesh: &Mesh, d: &ViewData, view: usize, samples: u32, seed: u32
             for s in 0..samples {
                 let dir = cosine_dir(n, rand2([gi as u32, s, seed]));
                 let o = x + n * 1e-3;
-                let Some(h) = crate::cpu::closest_hit(mesh, o, dir, 1e-3, 1e4) else { continue };
+                let Some(h) = crate::cpu::closest_hit(mesh, o, dir, 1e-3, 1e4) else {
+                    continue;
+                };
                 let y = o + dir * h.t;
                 if let Some(q) = d.best_view(y, dir, view) {
                     sum += Vec3::from_slice(&d.img[q][..3]);
                     valid += 1;
                 }
             }
-            let e = if valid > 0 { sum * std::f32::consts::PI / valid as f32 } else { Vec3::ZERO };
+            let e = if valid > 0 {
+                sum * std::f32::consts::PI / valid as f32
+            } else {
+                Vec3::ZERO
+            };
             [e.x, e.y, e.z, valid as f32]
         })
         .collect()

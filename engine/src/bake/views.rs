@@ -29,21 +29,37 @@ pub struct ViewData {
 
 impl ViewData {
     /// Rasterizes the proxy mesh from every camera and gathers the images.
-    pub fn build(gpu: &Arc<Gpu>, mesh: &RayScene, cameras: &[Camera], images: &[RgbImage]) -> Result<ViewData> {
+    pub fn build(
+        gpu: &Arc<Gpu>,
+        mesh: &RayScene,
+        cameras: &[Camera],
+        images: &[RgbImage],
+    ) -> Result<ViewData> {
         let (width, height) = (cameras[0].width, cameras[0].height);
-        if let Some(c) = cameras.iter().find(|c| (c.width, c.height) != (width, height)) {
+        if let Some(c) = cameras
+            .iter()
+            .find(|c| (c.width, c.height) != (width, height))
+        {
             return Err(Error::Other(format!(
                 "the bake needs all views at one resolution: {}x{} and {}x{}",
                 width, height, c.width, c.height
             )));
         }
         let pass = GbufferPass::new(gpu)?;
-        let mut d = ViewData { cameras: cameras.to_vec(), width, height, pos: vec![], nrm: vec![], img: vec![] };
+        let mut d = ViewData {
+            cameras: cameras.to_vec(),
+            width,
+            height,
+            pos: vec![],
+            nrm: vec![],
+            img: vec![],
+        };
         for (c, im) in cameras.iter().zip(images) {
             let g = pass.render(mesh, c, NEAR, FAR)?.download()?;
             d.pos.extend(g.pos_depth);
             d.nrm.extend(g.normal);
-            d.img.extend(im.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]));
+            d.img
+                .extend(im.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]));
         }
         Ok(d)
     }
