@@ -64,7 +64,7 @@ impl GpuLight {
             let r = self.p2[0];
             let (t, b) = onb(n);
             let rr = r * u[0].sqrt();
-            let phi = 6.283_185_3 * u[1];
+            let phi = std::f32::consts::TAU * u[1];
             (
                 v(self.p0) + t * (rr * phi.cos()) + b * (rr * phi.sin()),
                 n,

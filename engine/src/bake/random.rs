@@ -35,6 +35,6 @@ pub fn onb(n: Vec3) -> (Vec3, Vec3) {
 pub fn cosine_dir(n: Vec3, u: [f32; 2]) -> Vec3 {
     let (t, b) = onb(n);
     let r = u[0].sqrt();
-    let phi = 6.283_185_3 * u[1];
+    let phi = std::f32::consts::TAU * u[1];
     (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u[0]).max(0.0).sqrt()).normalize()
 }
