@@ -1,6 +1,8 @@
 #version 460
-// Albedo mesh (§4.1.2): each proxy-mesh vertex averages I_j / E_src_j over the views j that see
-// it (depth test), weighted by the inverse distance to camera j.
+// Albedo mesh (§4.1.2): each proxy-mesh vertex averages π·I_j / E_src_j over the views j that
+// see it (depth test), weighted by the inverse distance to camera j. E_src is irradiance (W/m²)
+// and a Lambertian surface has I = ρ/π·E, hence the π: the result is the reflectance ρ that
+// the added-irradiance path tracer multiplies by at each bounce.
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
@@ -28,7 +30,7 @@ void main() {
         // Pixels without an irradiance estimate (no ray found a view) carry no albedo.
         if (e.w <= 0.0 || max(e.r, max(e.g, e.b)) <= 1e-6) continue;
         float w = 1.0 / max(distance(cam_center(cams[j]), p), 1e-3);
-        sum += w * images[q].rgb / max(e.rgb, vec3(1e-6));
+        sum += w * 3.14159265359 * images[q].rgb / max(e.rgb, vec3(1e-6));
         wsum += w;
     }
     albedo[v] = vec4(wsum > 0.0 ? sum / wsum : vec3(0.0), wsum);

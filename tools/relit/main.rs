@@ -50,6 +50,9 @@ enum Cmd {
         /// Paths per pixel for the added irradiance (overrides the quality preset).
         #[arg(long)]
         added_samples: Option<u32>,
+        /// After baking, compare with the scene's ground truth (synthetic scenes).
+        #[arg(long)]
+        eval: bool,
     },
     /// Benchmarks (GPU timestamps; figures, never pass/fail).
     Bench {
@@ -331,6 +334,7 @@ fn scene_check(dir: &std::path::Path, quick: bool) -> Result<()> {
 fn bake(
     dir: &std::path::Path,
     p: &relit_engine::bake::BakeParams,
+    eval: bool,
     opts: &GpuOptions,
 ) -> Result<()> {
     let scene = Scene::load(dir)?;
@@ -379,6 +383,24 @@ fn bake(
         println!("albedo mesh and later stages wait for every view's source irradiance (bake the other slices)");
     }
     println!("done in {:.1} s", t0.elapsed().as_secs_f64());
+    if eval && report.albedo_mesh {
+        let a = relit_engine::bake::accuracy::evaluate(&gpu, &scene, &report.cache)?;
+        println!(
+            "accuracy against ground truth ({} views; median relative error, pixels):",
+            a.views
+        );
+        println!(
+            "  E_src vs true irradiance:   {:.3} ({} px)",
+            a.e_src.0, a.e_src.1
+        );
+        println!(
+            "  albedo mesh vs true albedo: {:.3} ({} px)",
+            a.albedo.0, a.albedo.1
+        );
+        for (l, e, n) in &a.e_add {
+            println!("  E_add {l} vs path tracer:  {e:.3} ({n} px)");
+        }
+    }
     Ok(())
 }
 
@@ -429,6 +451,7 @@ fn main() {
             quality,
             rays,
             added_samples,
+            eval,
         } => {
             let mut p = match quality {
                 Quality::Preview => relit_engine::bake::BakeParams::preview(),
@@ -441,7 +464,7 @@ fn main() {
             if let Some(a) = added_samples {
                 p.added_samples = *a;
             }
-            bake(scene, &p, &opts)
+            bake(scene, &p, *eval, &opts)
         }
     };
     if let Err(e) = res {

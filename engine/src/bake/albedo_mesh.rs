@@ -1,4 +1,5 @@
-//! Albedo mesh `a(v)` (§4.1.2): `shaders_glsl/bake/albedo_mesh.comp`.
+//! Albedo mesh `a(v)` (§4.1.2): `shaders_glsl/bake/albedo_mesh.comp`. `a = π·I/E_src`: the
+//! paper's `I/E` with E as irradiance in W/m² (a Lambertian surface has I = ρ/π·E).
 
 use std::sync::Arc;
 
@@ -87,7 +88,8 @@ pub fn reference(positions: &[[f32; 3]], d: &ViewData, e_src: &[[f32; 4]]) -> Ve
                 }
                 let w = 1.0 / (d.cameras[j].center() - p).length().max(1e-3);
                 let i = Vec3::from_slice(&d.img[q][..3]);
-                sum += w * i / Vec3::from_slice(&e[..3]).max(Vec3::splat(1e-6));
+                sum +=
+                    w * std::f32::consts::PI * i / Vec3::from_slice(&e[..3]).max(Vec3::splat(1e-6));
                 wsum += w;
             }
             let a = if wsum > 0.0 { sum / wsum } else { Vec3::ZERO };

@@ -1,6 +1,7 @@
 //! The bake (§4.1–4.2): per-view maps computed once per scene from the input views.
 //! One pass per file, each named after the paper's term, each with its CPU reference.
 
+pub mod accuracy;
 pub mod added_irradiance;
 pub mod albedo_mesh;
 pub mod mirror;

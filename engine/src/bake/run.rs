@@ -22,7 +22,7 @@ use crate::scene::image::{load_rgb, write_exr, RgbImage};
 use crate::scene::{write_atomic, Scene};
 
 /// Bump when a pass changes what it computes: old caches are then not reused.
-pub const BAKE_VERSION: u32 = 1;
+pub const BAKE_VERSION: u32 = 2;
 
 #[derive(Clone, Debug)]
 pub struct BakeParams {

@@ -25,6 +25,8 @@ pub struct ViewData {
     pub nrm: Vec<[f32; 4]>,
     /// Per view and pixel: linear RGB radiance.
     pub img: Vec<[f32; 4]>,
+    /// Per view and pixel: proxy triangle id + 1 (0: none).
+    pub tri: Vec<u32>,
 }
 
 impl ViewData {
@@ -53,11 +55,13 @@ impl ViewData {
             pos: vec![],
             nrm: vec![],
             img: vec![],
+            tri: vec![],
         };
         for (c, im) in cameras.iter().zip(images) {
             let g = pass.render(mesh, c, NEAR, FAR)?.download()?;
             d.pos.extend(g.pos_depth);
             d.nrm.extend(g.normal);
+            d.tri.extend(g.tri);
             d.img
                 .extend(im.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]));
         }

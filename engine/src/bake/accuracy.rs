@@ -1,0 +1,157 @@
+//! Accuracy of the bake against a synthetic scene's ground truth (tools/groundtruth):
+//! - E_src vs the true irradiance π·O*_diffuse/ρ under the original lighting,
+//! - the albedo mesh (interpolated at each pixel) vs the true diffuse albedo ρ,
+//! - E_add of each added light vs π·O*_diffuse/ρ rendered with that light alone.
+//!
+//! Compared per pixel, luminance, where the proxy and true surfaces agree (camera depth within
+//! 2%), ρ > 0.05 and the pixel is not a light (O*_diffuse luminance < 5). Reported as median
+//! relative errors |estimate − truth| / truth.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use super::run::{albedo_file, eadd_file, esrc_file, load_view_map, read_albedo};
+use super::ViewData;
+use crate::error::{Error, Result};
+use crate::gpu::{Gpu, RayScene};
+use crate::scene::image::load_rgb;
+use crate::scene::Scene;
+
+#[derive(Debug, Default, Clone)]
+pub struct Accuracy {
+    /// (median relative error, pixels compared)
+    pub e_src: (f64, usize),
+    pub albedo: (f64, usize),
+    /// Per added light with ground truth.
+    pub e_add: Vec<(String, f64, usize)>,
+    pub views: usize,
+}
+
+fn lum(c: [f32; 3]) -> f32 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, cache: &Path) -> Result<Accuracy> {
+    let syn = scene.synthetic.as_ref().ok_or_else(|| {
+        Error::Other(format!(
+            "{}: no ground truth (not a synthetic scene)",
+            scene.root.display()
+        ))
+    })?;
+    let gt = scene.root.join(&syn.ground_truth);
+    let mesh = RayScene::new(gpu, &scene.mesh.positions, &scene.mesh.triangles)?;
+    let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
+    let imgs = scene
+        .views
+        .iter()
+        .map(|v| load_rgb(&v.image))
+        .collect::<Result<Vec<_>>>()?;
+    let d = ViewData::build(gpu, &mesh, &cams, &imgs)?;
+    let albedo = read_albedo(&albedo_file(cache), scene.mesh.positions.len())?;
+    let npix = d.pixels();
+    let mut acc = Accuracy::default();
+    let (mut es, mut al) = (Vec::new(), Vec::new());
+    let mut ea: Vec<(String, Vec<f64>)> = scene
+        .lights
+        .iter()
+        .filter(|l| !l.original)
+        .map(|l| (l.name.clone(), Vec::new()))
+        .collect();
+    for (i, v) in scene.views.iter().enumerate() {
+        let f = |k: &str| gt.join("aov").join(format!("{}.{k}.exr", v.name));
+        let diff = gt.join("original").join(format!("{}.diffuse.exr", v.name));
+        if !f("albedo").exists() || !diff.exists() {
+            continue;
+        }
+        acc.views += 1;
+        let (rho, depth, od) = (
+            load_rgb(&f("albedo"))?,
+            load_rgb(&f("depth"))?,
+            load_rgb(&diff)?,
+        );
+        let esrc = load_view_map(&esrc_file(cache, &v.name))?;
+        let eadd: Vec<Option<(Vec<[f32; 4]>, crate::scene::RgbImage)>> = ea
+            .iter()
+            .map(|(l, _)| {
+                let g = gt.join(l).join(format!("{}.diffuse.exr", v.name));
+                let c = eadd_file(cache, &v.name, l);
+                (g.exists() && c.exists())
+                    .then(|| Ok::<_, Error>((load_view_map(&c)?, load_rgb(&g)?)))
+                    .transpose()
+            })
+            .collect::<Result<_>>()?;
+        for p in 0..npix {
+            let gi = i * npix + p;
+            let (zp, zt) = (d.pos[gi][3], depth.pixels[p][0]);
+            let r = lum(rho.pixels[p]);
+            if zp <= 0.0
+                || zt <= 0.0
+                || (zp - zt).abs() > 0.02 * zt
+                || r <= 0.05
+                || lum(od.pixels[p]) >= 5.0
+            {
+                continue;
+            }
+            let e_true = std::f32::consts::PI * lum(od.pixels[p]) / r;
+            if e_true > 1e-4 {
+                es.push(
+                    ((lum([esrc[p][0], esrc[p][1], esrc[p][2]]) - e_true).abs() / e_true) as f64,
+                );
+            }
+            if d.tri[gi] > 0 {
+                let t = scene.mesh.triangles[(d.tri[gi] - 1) as usize];
+                let [a, b, c] = t.map(|k| Vec3::from(scene.mesh.positions[k as usize]));
+                let x = Vec3::from_slice(&d.pos[gi][..3]);
+                // Barycentrics of x in the triangle.
+                let (v0, v1, v2) = (b - a, c - a, x - a);
+                let (d00, d01, d11, d20, d21) =
+                    (v0.dot(v0), v0.dot(v1), v1.dot(v1), v2.dot(v0), v2.dot(v1));
+                let den = d00 * d11 - d01 * d01;
+                if den.abs() > 1e-12 {
+                    let (bv, bw) = ((d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den);
+                    let w = [1.0 - bv - bw, bv, bw];
+                    let mut est = [0.0f32; 3];
+                    let mut seen = true;
+                    for (k, &vi) in t.iter().enumerate() {
+                        let av = albedo[vi as usize];
+                        seen &= av[3] > 0.0;
+                        for ch in 0..3 {
+                            est[ch] += w[k] * av[ch];
+                        }
+                    }
+                    if seen {
+                        al.push(((lum(est) - r).abs() / r) as f64);
+                    }
+                }
+            }
+            for (k, e) in eadd.iter().enumerate() {
+                if let Some((ours, g)) = e {
+                    let t = std::f32::consts::PI * lum(g.pixels[p]) / r;
+                    if t > 1e-3 {
+                        ea[k].1.push(
+                            ((lum([ours[p][0], ours[p][1], ours[p][2]]) - t).abs() / t) as f64,
+                        );
+                    }
+                }
+            }
+        }
+    }
+    acc.e_src = (median(es.clone()), es.len());
+    acc.albedo = (median(al.clone()), al.len());
+    acc.e_add = ea
+        .into_iter()
+        .filter(|(_, v)| !v.is_empty())
+        .map(|(n, v)| (n, median(v.clone()), v.len()))
+        .collect();
+    Ok(acc)
+}
