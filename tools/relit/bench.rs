@@ -27,6 +27,16 @@ pub enum BenchCmd {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Seconds per view and rays/s of each bake stage (GPU timestamps, nothing cached), next to
+    /// the raw ray-query rate on the same mesh.
+    Bake {
+        scene: PathBuf,
+        /// Views to time (the first N).
+        #[arg(long, default_value_t = 2)]
+        views: usize,
+        #[arg(long, value_enum, default_value = "final")]
+        quality: crate::Quality,
+    },
 }
 
 pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
@@ -37,6 +47,11 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             repeats,
             json,
         } => rays_bench(mesh.as_ref(), *rays, *repeats, json.as_ref(), opts),
+        BenchCmd::Bake {
+            scene,
+            views,
+            quality,
+        } => bake_bench(scene, *views, *quality, opts),
     }
 }
 
@@ -171,5 +186,157 @@ fn rays_bench(
         );
         relit_engine::scene::write_atomic(p, text.as_bytes())?;
     }
+    Ok(())
+}
+
+/// Times `record` with GPU timestamps; returns milliseconds.
+fn timed(
+    gpu: &std::sync::Arc<relit_engine::gpu::Gpu>,
+    label: &str,
+    record: impl FnOnce(vk::CommandBuffer) -> relit_engine::Result<()>,
+) -> Result<f64> {
+    let mut timer = Timer::new(gpu, 1)?;
+    let mut err = Ok(());
+    gpu.submit(|cmd| {
+        err = timer
+            .begin(cmd, label)
+            .and_then(|s| record(cmd).map(|_| s))
+            .map(|s| timer.end(cmd, s));
+    })?;
+    err?;
+    Ok(timer.read()?[0].1)
+}
+
+fn bake_bench(
+    dir: &std::path::Path,
+    nviews: usize,
+    quality: crate::Quality,
+    opts: &GpuOptions,
+) -> Result<()> {
+    use relit_engine::bake::{
+        AddedIrradiance, AddedParams, BakeParams, GpuLight, GpuViews, Mirror, SourceIrradiance,
+        ViewData,
+    };
+    let scene = relit_engine::scene::Scene::load(dir)?;
+    let p = match quality {
+        crate::Quality::Preview => BakeParams::preview(),
+        crate::Quality::Final => BakeParams::final_quality(),
+    };
+    let gpu = crate::open_gpu(opts)?;
+    let images = scene
+        .views
+        .iter()
+        .map(|v| relit_engine::scene::image::load_rgb(&v.image))
+        .collect::<relit_engine::Result<Vec<_>>>()?;
+    let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
+    let mesh = RayScene::new(&gpu, &scene.mesh.positions, &scene.mesh.triangles)?;
+    let data = ViewData::build(&gpu, &mesh, &cams, &images)?;
+    let views = GpuViews::upload(&gpu, &data)?;
+    let npix = data.pixels() as u64;
+    let out = Buffer::new(
+        &gpu,
+        "out",
+        npix * 16,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        MemoryLocation::GpuOnly,
+    )?;
+    let albedo: Vec<[f32; 4]> = vec![[0.5, 0.5, 0.5, 1.0]; scene.mesh.positions.len()];
+    let ab = Buffer::from_slice(
+        &gpu,
+        "albedo",
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        &albedo,
+    )?;
+    let (si, mi, ai) = (
+        SourceIrradiance::new(&gpu)?,
+        Mirror::new(&gpu)?,
+        AddedIrradiance::new(&gpu)?,
+    );
+    let light = scene.lights.iter().find(|l| !l.original).map(GpuLight::new);
+    let ap = AddedParams {
+        samples: p.added_samples,
+        bounces: p.bounces,
+        seed: 1,
+    };
+    println!("device: {}", gpu.caps.name);
+    println!(
+        "scene: {} views at {}x{}, {} proxy triangles; timing {} view(s): {} rays/px (E_src), {} paths/px x {} bounces (E_add)",
+        scene.views.len(),
+        data.width,
+        data.height,
+        scene.mesh.triangles.len(),
+        nviews.min(scene.views.len()),
+        p.irradiance_samples,
+        p.added_samples,
+        p.bounces
+    );
+    // Warm-up: lavapipe compiles each shader at its first dispatch.
+    si.record_warm(&gpu, &mesh, &views, &out)?;
+    let (mut t_s, mut t_m, mut t_a) = (0.0, 0.0, 0.0);
+    let n = nviews.min(scene.views.len()).max(1);
+    for v in 0..n as u32 {
+        t_s += timed(&gpu, "e_src", |cmd| {
+            si.record(cmd, &mesh, &views, v, p.irradiance_samples, 1, &out)
+        })?;
+        t_m += timed(&gpu, "m_src", |cmd| mi.record(cmd, &mesh, &views, v, &out))?;
+        if let Some(l) = &light {
+            t_a += timed(&gpu, "e_add", |cmd| {
+                ai.record(cmd, &mesh, &views, &ab, v, l, ap, &out)
+            })?;
+        }
+    }
+    let per = |ms: f64| ms / n as f64 * 1e-3;
+    let rate = |rays: u64, ms: f64| rays as f64 * n as f64 / (ms * 1e-3) * 1e-6;
+    let rays_s = npix * p.irradiance_samples as u64;
+    let rays_a = npix * p.added_samples as u64 * (2 * p.bounces as u64 + 1);
+    println!(
+        "source irradiance: {:.2} s/view, {:.3} M rays/s ({} rays/px)",
+        per(t_s),
+        rate(rays_s, t_s),
+        p.irradiance_samples
+    );
+    println!(
+        "mirror:            {:.3} s/view, {:.3} M rays/s (1 ray/px)",
+        per(t_m),
+        rate(npix, t_m)
+    );
+    if light.is_some() {
+        println!(
+            "added irradiance:  {:.2} s/view/light, {:.3} M rays/s (at most {} rays/px)",
+            per(t_a),
+            rate(rays_a, t_a),
+            p.added_samples * (2 * p.bounces + 1)
+        );
+    }
+    // The raw rate on the same mesh, for comparison.
+    let caster = RayCaster::new(&gpu)?;
+    let rays = make_rays(&scene.mesh, 1 << 17, false, 3);
+    let rb = Buffer::from_slice(&gpu, "rays", vk::BufferUsageFlags::STORAGE_BUFFER, &rays)?;
+    let hits = Buffer::new(
+        &gpu,
+        "hits",
+        (rays.len() * 16) as u64,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        MemoryLocation::GpuOnly,
+    )?;
+    timed(&gpu, "warm", |cmd| {
+        caster.record(cmd, &mesh, &rb, &hits, 1024, false)
+    })?;
+    let ms = timed(&gpu, "raw", |cmd| {
+        caster.record(cmd, &mesh, &rb, &hits, rays.len() as u32, false)
+    })?;
+    println!(
+        "raw closest-hit rate on this mesh: {:.3} M rays/s",
+        rays.len() as f64 / (ms * 1e-3) * 1e-6
+    );
+    let total = scene.views.len() as f64
+        * (per(t_s)
+            + per(t_m)
+            + per(t_a) * scene.lights.iter().filter(|l| !l.original).count() as f64);
+    println!(
+        "projected full bake: {:.0} s ({} views)",
+        total,
+        scene.views.len()
+    );
     Ok(())
 }

@@ -61,8 +61,8 @@ enum Cmd {
     },
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-enum Quality {
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum Quality {
     Preview,
     Final,
 }

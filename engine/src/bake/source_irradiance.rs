@@ -62,6 +62,20 @@ impl SourceIrradiance {
         )
     }
 
+    /// One tiny dispatch so that the driver compiles the shader (lavapipe compiles at first
+    /// use), keeping compilation out of timings.
+    pub fn record_warm(
+        &self,
+        gpu: &Arc<Gpu>,
+        mesh: &RayScene,
+        views: &GpuViews,
+        out: &Buffer,
+    ) -> Result<()> {
+        let mut res = Ok(());
+        gpu.submit(|cmd| res = self.record(cmd, mesh, views, 0, 1, 0, out))?;
+        res
+    }
+
     /// Runs one view and reads the result back.
     pub fn run(
         &self,
