@@ -4,6 +4,7 @@
 pub mod accuracy;
 pub mod added_irradiance;
 pub mod albedo_mesh;
+pub mod denoise;
 pub mod mirror;
 pub mod random;
 pub mod run;
@@ -12,6 +13,7 @@ pub mod views;
 
 pub use added_irradiance::{AddedIrradiance, AddedParams, GpuLight};
 pub use albedo_mesh::AlbedoMesh;
+pub use denoise::{Denoise, DenoiseParams};
 pub use mirror::Mirror;
 pub use run::{bake, BakeParams, BakeReport, Progress};
 pub use source_irradiance::SourceIrradiance;

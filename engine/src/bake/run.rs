@@ -13,8 +13,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::{
-    AddedIrradiance, AddedParams, AlbedoMesh, GpuLight, GpuViews, Mirror, SourceIrradiance,
-    ViewData,
+    AddedIrradiance, AddedParams, AlbedoMesh, Denoise, DenoiseParams, GpuLight, GpuViews, Mirror,
+    SourceIrradiance, ViewData,
 };
 use crate::error::{Error, Result};
 use crate::gpu::{vk, Buffer, Gpu, MemoryLocation, RayScene};
@@ -22,7 +22,7 @@ use crate::scene::image::{load_rgb, write_exr, RgbImage};
 use crate::scene::{write_atomic, Scene};
 
 /// Bump when a pass changes what it computes: old caches are then not reused.
-pub const BAKE_VERSION: u32 = 2;
+pub const BAKE_VERSION: u32 = 3;
 
 #[derive(Clone, Debug)]
 pub struct BakeParams {
@@ -34,6 +34,8 @@ pub struct BakeParams {
     pub seed: u32,
     /// Slice of views to bake (all by default).
     pub views: Option<Range<usize>>,
+    /// The E_src denoiser (radius 0: off).
+    pub denoise: DenoiseParams,
 }
 
 impl BakeParams {
@@ -44,6 +46,7 @@ impl BakeParams {
             bounces: 2,
             seed: 1,
             views: None,
+            denoise: DenoiseParams::default(),
         }
     }
     pub fn preview() -> BakeParams {
@@ -53,6 +56,7 @@ impl BakeParams {
             bounces: 1,
             seed: 1,
             views: None,
+            denoise: DenoiseParams::default(),
         }
     }
 }
@@ -103,6 +107,10 @@ pub fn cache_dir(scene: &Scene, p: &BakeParams) -> Result<PathBuf> {
     let mut h = Fnv::new();
     h.bytes(&BAKE_VERSION.to_le_bytes());
     for v in [p.irradiance_samples, p.added_samples, p.bounces, p.seed] {
+        h.bytes(&v.to_le_bytes());
+    }
+    let d = p.denoise;
+    for v in [d.radius as f32, d.sigma_px, d.sigma_depth, d.normal_power] {
         h.bytes(&v.to_le_bytes());
     }
     h.file(&scene.mesh_path)?;
@@ -222,8 +230,16 @@ pub fn bake(
         Ok(v)
     };
 
-    // Stage 1: source irradiance.
+    // Stage 1: source irradiance, denoised.
     let si = SourceIrradiance::new(gpu)?;
+    let dn = Denoise::new(gpu)?;
+    let noisy = Buffer::new(
+        gpu,
+        "e_src noisy",
+        npix * 16,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        MemoryLocation::GpuOnly,
+    )?;
     let todo: Vec<usize> = slice
         .clone()
         .filter(|&i| !esrc_file(&cache, &scene.views[i].name).exists())
@@ -231,16 +247,17 @@ pub fn bake(
     let (t0, mut rays) = (Instant::now(), 0u64);
     for (k, &i) in todo.iter().enumerate() {
         let mut res = Ok(());
+        let (v, n) = (i as u32, p.irradiance_samples);
         gpu.submit(|cmd| {
-            res = si.record(
-                cmd,
-                &mesh,
-                &views,
-                i as u32,
-                p.irradiance_samples,
-                p.seed,
-                &out,
-            )
+            res = if p.denoise.radius > 0 {
+                si.record(cmd, &mesh, &views, v, n, p.seed, &noisy)
+                    .and_then(|_| {
+                        crate::gpu::full_barrier(gpu, cmd);
+                        dn.record(cmd, &views, v, p.denoise, &noisy, &out)
+                    })
+            } else {
+                si.record(cmd, &mesh, &views, v, n, p.seed, &out)
+            }
         })?;
         res?;
         let e = read_out(&out)?;
