@@ -5,5 +5,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
 cargo test --workspace "$@"
-# The ground-truth renderer's own tests (they use the scenegen binary cargo just built).
+# The ground-truth renderer's own tests (they drive the scenegen binary).
+cargo build -p relit-scenegen --bin scenegen
 (cd tools/groundtruth && python3 -m unittest -v test_groundtruth)
