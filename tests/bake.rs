@@ -435,7 +435,7 @@ fn bake_accuracy_against_mitsuba_ground_truth() {
     .unwrap();
     let a = accuracy::evaluate(&gpu, &scene, &report.cache).unwrap();
     eprintln!("{a:?}");
-    // Median relative errors per pixel (luminance). Measured 0.14 / 0.14 / 0.25 at this size
+    // Median relative errors per pixel (luminance). Measured 0.14 / 0.14 / 0.21 at this size
     // (0.32 / 0.28 / 0.22 without the denoiser): the 8 views of 48×36 pixels are coarse
     // radiance samples, the proxy is degraded, and the 256-spp truth has noise of its own. The
     // bounds catch systematic errors (a missing π in the albedo gave 0.69 and 0.57).
