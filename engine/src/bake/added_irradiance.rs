@@ -8,7 +8,7 @@ use glam::Vec3;
 use super::random::{cosine_dir, onb, rand2};
 use super::views::{facing_normal, GpuViews, ViewData};
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, RayScene};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
 use crate::scene::{Light, LightShape, Mesh};
 
 /// A light as `common/lights.glsl` reads it.
@@ -154,21 +154,9 @@ impl AddedIrradiance {
         light: &GpuLight,
         p: AddedParams,
     ) -> Result<Vec<[f32; 4]>> {
-        let gpu = &self.pipeline.gpu;
-        let n = (views.width * views.height) as u64;
-        let out = Buffer::new(
-            gpu,
-            "e_add",
-            n * 16,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            MemoryLocation::GpuOnly,
-        )?;
-        let mut res = Ok(());
-        gpu.submit(|cmd| res = self.record(cmd, mesh, views, albedo, view, light, p, &out))?;
-        res?;
-        let mut v: Vec<[f32; 4]> = out.download_vec()?;
-        v.truncate(n as usize);
-        Ok(v)
+        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
+            self.record(cmd, mesh, views, albedo, view, light, p, out)
+        })
     }
 }
 

@@ -6,7 +6,7 @@ use glam::Vec3;
 
 use super::views::{facing_normal, GpuViews, ViewData};
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, RayScene};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
 use crate::scene::Mesh;
 
 #[repr(C)]
@@ -55,21 +55,9 @@ impl Mirror {
     }
 
     pub fn run(&self, mesh: &RayScene, views: &GpuViews, view: u32) -> Result<Vec<[f32; 4]>> {
-        let gpu = &self.pipeline.gpu;
-        let n = (views.width * views.height) as u64;
-        let out = Buffer::new(
-            gpu,
-            "m_src",
-            n * 16,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            MemoryLocation::GpuOnly,
-        )?;
-        let mut res = Ok(());
-        gpu.submit(|cmd| res = self.record(cmd, mesh, views, view, &out))?;
-        res?;
-        let mut v: Vec<[f32; 4]> = out.download_vec()?;
-        v.truncate(n as usize);
-        Ok(v)
+        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
+            self.record(cmd, mesh, views, view, out)
+        })
     }
 }
 

@@ -85,21 +85,9 @@ impl SourceIrradiance {
         samples: u32,
         seed: u32,
     ) -> Result<Vec<[f32; 4]>> {
-        let gpu = &self.pipeline.gpu;
-        let n = (views.width * views.height) as u64;
-        let out = Buffer::new(
-            gpu,
-            "e_src",
-            n * 16,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            crate::gpu::MemoryLocation::GpuOnly,
-        )?;
-        let mut res = Ok(());
-        gpu.submit(|cmd| res = self.record(cmd, mesh, views, view, samples, seed, &out))?;
-        res?;
-        let mut v: Vec<[f32; 4]> = out.download_vec()?;
-        v.truncate(n as usize);
-        Ok(v)
+        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
+            self.record(cmd, mesh, views, view, samples, seed, out)
+        })
     }
 }
 

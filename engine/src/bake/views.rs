@@ -147,6 +147,28 @@ impl GpuViews {
     }
 }
 
+/// Runs a pass that writes one vec4 per pixel of a view into `out` and reads it back.
+pub fn run_pixels(
+    gpu: &Arc<Gpu>,
+    views: &GpuViews,
+    record: impl FnOnce(vk::CommandBuffer, &Buffer) -> Result<()>,
+) -> Result<Vec<[f32; 4]>> {
+    let n = (views.width * views.height) as u64;
+    let out = Buffer::new(
+        gpu,
+        "pass out",
+        n * 16,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        crate::gpu::MemoryLocation::GpuOnly,
+    )?;
+    let mut res = Ok(());
+    gpu.submit(|cmd| res = record(cmd, &out))?;
+    res?;
+    let mut v: Vec<[f32; 4]> = out.download_vec()?;
+    v.truncate(n as usize);
+    Ok(v)
+}
+
 /// Camera centre of view `j`, oriented normal at a pixel (facing that view's camera).
 pub fn facing_normal(d: &ViewData, gi: usize, view: usize) -> Vec3 {
     let x = Vec3::from_slice(&d.pos[gi][..3]);
