@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Sets the machine up (tools/setup.sh) and runs the main job on the bundled scene: device
-# report, a full check of the demo scene, and its bake (preview quality, ~8 min on 2 cores;
+# report, a full check of the demo scene, and its bake (preview quality, ~10 min on 2 cores;
 # a second run finds everything cached). Rendering and flythroughs come with the frame passes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
