@@ -441,6 +441,8 @@ fn bake_accuracy_against_mitsuba_ground_truth() {
     // bounds catch systematic errors (a missing π in the albedo gave 0.69 and 0.57).
     assert!(a.e_src.1 > 5000 && a.e_src.0 < 0.25, "E_src {:?}", a.e_src);
     assert!(a.albedo.0 < 0.25, "albedo {:?}", a.albedo);
+    // M_src against the path-traced mirror image: measured 0.10.
+    assert!(a.m_src.1 > 3000 && a.m_src.0 < 0.2, "M_src {:?}", a.m_src);
     assert_eq!(a.e_add.len(), 1);
     assert!(a.e_add[0].1 < 0.35, "E_add {:?}", a.e_add);
     common::assert_no_validation_errors(&gpu);

@@ -9,6 +9,7 @@ For every camera (capture views and test views) and lighting condition of a scen
   gt/<condition>/<view>.diffuse.exr  O*_diffuse = emission + rho_d(x)/pi * E(x) at the first hit,
                                      E being the full irradiance there (eq. 3's a(x)E(x))
   gt/<condition>/<view>.glossy.exr   O* - O*_diffuse (eq. 7's residual)
+  gt/original/<view>.mirror.exr      radiance from the mirror direction at the first hit (§4.2)
   gt/aov/<view>.{albedo,normal,depth}.exr   diffuse albedo, world shading normal, camera-z depth
 
 and the input photographs images/<view>.exr = the total radiance under the original lighting.
@@ -101,6 +102,34 @@ class DiffuseFirstBounce(mi.SamplingIntegrator):
 
 
 mi.register_integrator("diffuse_first_bounce", lambda props: DiffuseFirstBounce(props))
+
+
+class MirrorFirstBounce(mi.SamplingIntegrator):
+    """The true mirror image (§4.2): radiance arriving at the first hit from the direction
+    that mirrors the camera ray about the shading normal, path traced. The reference for the
+    bake's source mirror images M_src."""
+
+    def __init__(self, props):
+        super().__init__(props)
+        self.path = mi.load_dict({"type": "path", "max_depth": props.get("max_depth", MAX_DEPTH)})
+
+    def sample(self, scene, sampler, ray, medium=None, active=True):
+        si = scene.ray_intersect(ray, active)
+        valid = mi.Bool(active) & si.is_valid()
+        n = si.sh_frame.n
+        n = dr.select(dr.dot(n, -ray.d) < 0, -n, n)
+        r = ray.d - 2.0 * dr.dot(ray.d, n) * n
+        L, _, _ = self.path.sample(scene, sampler, mi.RayDifferential3f(si.spawn_ray(r)), medium, valid)
+        return dr.select(valid, L, 0.0), valid, []
+
+    def aov_names(self):
+        return []
+
+    def to_string(self):
+        return "MirrorFirstBounce[]"
+
+
+mi.register_integrator("mirror_first_bounce", lambda props: MirrorFirstBounce(props))
 
 
 # ---------------------------------------------------------------- scene description → Mitsuba
@@ -298,6 +327,7 @@ def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed
             write_exr(os.path.join(gt, "aov", f"{name}.depth.exr"), z[:, :, None])
     if only in ("all", "inputs"):
         diffuse = mi.load_dict({"type": "diffuse_first_bounce", "max_depth": MAX_DEPTH})
+        mirror = mi.load_dict({"type": "mirror_first_bounce", "max_depth": MAX_DEPTH})
         path = mi.load_dict({"type": "path", "max_depth": MAX_DEPTH})
         for c in conds:
             out = os.path.join(gt, c["name"])
@@ -314,6 +344,9 @@ def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed
                 write_exr(os.path.join(out, f"{name}.total.exr"), total)
                 write_exr(os.path.join(out, f"{name}.diffuse.exr"), diff)
                 write_exr(os.path.join(out, f"{name}.glossy.exr"), total - diff)
+                if c["name"] == "original":
+                    m = np.array(mi.render(s, integrator=mirror, sensor=i, spp=spp, seed=seed + 7919 + i))
+                    write_exr(os.path.join(out, f"{name}.mirror.exr"), m)
             log(f"  {c['name']}: {len(cams)} views ({time.time() - t0:.1f} s)")
     return time.time() - t0
 

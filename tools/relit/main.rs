@@ -397,6 +397,12 @@ fn bake(
             "  albedo mesh vs true albedo: {:.3} ({} px)",
             a.albedo.0, a.albedo.1
         );
+        if a.m_src.1 > 0 {
+            println!(
+                "  M_src vs true mirror image: {:.3} ({} px)",
+                a.m_src.0, a.m_src.1
+            );
+        }
         for (l, e, n) in &a.e_add {
             println!("  E_add {l} vs path tracer:  {e:.3} ({n} px)");
         }

@@ -1,7 +1,9 @@
 //! Accuracy of the bake against a synthetic scene's ground truth (tools/groundtruth):
 //! - E_src vs the true irradiance π·O*_diffuse/ρ under the original lighting,
 //! - the albedo mesh (interpolated at each pixel) vs the true diffuse albedo ρ,
-//! - E_add of each added light vs π·O*_diffuse/ρ rendered with that light alone.
+//! - E_add of each added light vs π·O*_diffuse/ρ rendered with that light alone,
+//! - M_src vs the true mirror image (radiance from the mirror direction, path traced), where
+//!   M_src found a view.
 //!
 //! Compared per pixel, luminance, where the proxy and true surfaces agree (camera depth within
 //! 2%), ρ > 0.05 and the pixel is not a light (O*_diffuse luminance < 5). Reported as median
@@ -12,7 +14,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use super::run::{albedo_file, eadd_file, esrc_file, load_view_map, read_albedo};
+use super::run::{albedo_file, eadd_file, esrc_file, load_view_map, msrc_file, read_albedo};
 use super::ViewData;
 use crate::error::{Error, Result};
 use crate::gpu::{Gpu, RayScene};
@@ -26,6 +28,7 @@ pub struct Accuracy {
     pub albedo: (f64, usize),
     /// Per added light with ground truth.
     pub e_add: Vec<(String, f64, usize)>,
+    pub m_src: (f64, usize),
     pub views: usize,
 }
 
@@ -60,7 +63,7 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, cache: &Path) -> Result<Accuracy>
     let albedo = read_albedo(&albedo_file(cache), scene.mesh.positions.len())?;
     let npix = d.pixels();
     let mut acc = Accuracy::default();
-    let (mut es, mut al) = (Vec::new(), Vec::new());
+    let (mut es, mut al, mut ms) = (Vec::new(), Vec::new(), Vec::new());
     let mut ea: Vec<(String, Vec<f64>)> = scene
         .lights
         .iter()
@@ -80,6 +83,15 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, cache: &Path) -> Result<Accuracy>
             load_rgb(&diff)?,
         );
         let esrc = load_view_map(&esrc_file(cache, &v.name))?;
+        let mirror_gt = gt.join("original").join(format!("{}.mirror.exr", v.name));
+        let mirror = if mirror_gt.exists() {
+            Some((
+                load_view_map(&msrc_file(cache, &v.name))?,
+                load_rgb(&mirror_gt)?,
+            ))
+        } else {
+            None
+        };
         let eadd: Vec<Option<(Vec<[f32; 4]>, crate::scene::RgbImage)>> = ea
             .iter()
             .map(|(l, _)| {
@@ -103,6 +115,12 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, cache: &Path) -> Result<Accuracy>
                 continue;
             }
             let e_true = std::f32::consts::PI * lum(od.pixels[p]) / r;
+            if let Some((ours, t)) = &mirror {
+                let (o, t) = (lum([ours[p][0], ours[p][1], ours[p][2]]), lum(t.pixels[p]));
+                if o > 0.0 && t > 1e-3 {
+                    ms.push(((o - t).abs() / t) as f64);
+                }
+            }
             if e_true > 1e-4 {
                 es.push(
                     ((lum([esrc[p][0], esrc[p][1], esrc[p][2]]) - e_true).abs() / e_true) as f64,
@@ -148,6 +166,7 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, cache: &Path) -> Result<Accuracy>
     }
     acc.e_src = (median(es.clone()), es.len());
     acc.albedo = (median(al.clone()), al.len());
+    acc.m_src = (median(ms.clone()), ms.len());
     acc.e_add = ea
         .into_iter()
         .filter(|(_, v)| !v.is_empty())
