@@ -74,6 +74,8 @@ fn main() {
     let src_root = manifest.parent().unwrap().join("shaders_glsl");
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").unwrap());
     println!("cargo:rerun-if-changed={}", src_root.display());
+    // intel_tex_2's ISPC kernels need the C++ runtime at link time.
+    println!("cargo:rustc-link-lib=stdc++");
 
     let mut files = Vec::new();
     walk(&src_root, &mut files);

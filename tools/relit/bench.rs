@@ -27,6 +27,15 @@ pub enum BenchCmd {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// BC6H view storage: encode time, size ratio and log-space PSNR (μ = 64) against the
+    /// half-float maps of a baked scene's cache, decoded by sampling on the device.
+    Bc6h {
+        /// A bake cache directory (SCENE/.relit/bake-<key>).
+        cache: PathBuf,
+        /// Maps to encode (the first N files of each kind).
+        #[arg(long, default_value_t = 4)]
+        maps: usize,
+    },
     /// Seconds per view and rays/s of each bake stage (GPU timestamps, nothing cached), next to
     /// the raw ray-query rate on the same mesh.
     Bake {
@@ -52,6 +61,7 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             views,
             quality,
         } => bake_bench(scene, *views, *quality, opts),
+        BenchCmd::Bc6h { cache, maps } => bc6h_bench(cache, *maps, opts),
     }
 }
 
@@ -338,5 +348,52 @@ fn bake_bench(
         total,
         scene.views.len()
     );
+    Ok(())
+}
+
+fn bc6h_bench(cache: &std::path::Path, maps: usize, opts: &GpuOptions) -> Result<()> {
+    use relit_engine::bake::storage::{encode_bc6h, log_psnr, Bc6hQuality, Bc6hTexture, Fetch};
+    let gpu = crate::open_gpu(opts)?;
+    let fetch = Fetch::new(&gpu)?;
+    let mut files: Vec<PathBuf> = std::fs::read_dir(cache)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "exr"))
+        .collect();
+    files.sort();
+    println!("device: {}", gpu.caps.name);
+    for kind in [".esrc.", ".msrc.", ".eadd."] {
+        let pick: Vec<_> = files
+            .iter()
+            .filter(|p| p.to_string_lossy().contains(kind))
+            .take(maps)
+            .collect();
+        if pick.is_empty() {
+            continue;
+        }
+        for q in [Bc6hQuality::Fast, Bc6hQuality::Basic] {
+            let (mut psnr, mut ms, mut bytes, mut raw) = (0.0, 0.0, 0usize, 0usize);
+            for f in &pick {
+                let img = relit_engine::scene::image::load_rgb(f)?;
+                let px: Vec<[f32; 4]> =
+                    img.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect();
+                let t = Instant::now();
+                let blocks = encode_bc6h(img.width, img.height, &px, q);
+                ms += t.elapsed().as_secs_f64() * 1e3;
+                bytes += blocks.len();
+                raw += (img.width * img.height * 8) as usize;
+                let tex = Bc6hTexture::upload(&gpu, img.width, img.height, &[blocks])?;
+                psnr += log_psnr(&fetch.run(&tex.image, 0, img.width, img.height)?, &px);
+            }
+            let n = pick.len() as f64;
+            println!(
+                "{:<6} {q:?}: {} maps, {:.1} ms/map to encode, {:.1}x smaller than RGBA16F, log-space PSNR {:.1} dB",
+                kind.trim_matches('.'),
+                pick.len(),
+                ms / n,
+                raw as f64 / bytes as f64,
+                psnr / n
+            );
+        }
+    }
     Ok(())
 }

@@ -9,6 +9,7 @@ pub mod mirror;
 pub mod random;
 pub mod run;
 pub mod source_irradiance;
+pub mod storage;
 pub mod views;
 
 pub use added_irradiance::{AddedIrradiance, AddedParams, GpuLight};

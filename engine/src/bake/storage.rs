@@ -1,0 +1,162 @@
+//! Compressed view storage (§4.1–4.2 maps): BC6H (`VK_FORMAT_BC6H_UFLOAT_BLOCK`) encoded on the
+//! CPU with Intel's ISPC texture compressor (intel_tex_2), and the log-space PSNR (μ = 64, the
+//! network's tonemapping, §5.2) against the half-float original that decides whether the
+//! compression is good enough. BC6H holds 1 byte per pixel against RGBA16F's 8.
+
+use std::sync::Arc;
+
+use half::f16;
+
+use crate::error::{Error, Result};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Image, MemoryLocation, Pipeline, Sampler};
+
+/// Encodes an RGB float image (rows top to bottom) as BC6H unsigned blocks. Sizes need not be
+/// multiples of 4: edges are replicated into the padding. Negative values clamp to 0.
+pub fn encode_bc6h(width: u32, height: u32, px: &[[f32; 4]], quality: Bc6hQuality) -> Vec<u8> {
+    let (pw, ph) = (width.div_ceil(4) * 4, height.div_ceil(4) * 4);
+    let mut data = vec![f16::ZERO; (pw * ph * 4) as usize];
+    for y in 0..ph {
+        for x in 0..pw {
+            let s = px[(y.min(height - 1) * width + x.min(width - 1)) as usize];
+            let o = ((y * pw + x) * 4) as usize;
+            for k in 0..3 {
+                data[o + k] = f16::from_f32(s[k].max(0.0).min(65000.0));
+            }
+            data[o + 3] = f16::ONE;
+        }
+    }
+    let surf = intel_tex_2::RgbaSurface {
+        width: pw,
+        height: ph,
+        stride: pw * 8,
+        data: bytemuck::cast_slice(&data),
+    };
+    let settings = match quality {
+        Bc6hQuality::Fast => intel_tex_2::bc6h::very_fast_settings(),
+        Bc6hQuality::Basic => intel_tex_2::bc6h::basic_settings(),
+        Bc6hQuality::Slow => intel_tex_2::bc6h::slow_settings(),
+    };
+    intel_tex_2::bc6h::compress_blocks(&settings, &surf)
+}
+
+#[derive(Clone, Copy, Debug)]
+pub enum Bc6hQuality {
+    Fast,
+    Basic,
+    Slow,
+}
+
+/// log(1 + μx) / log(1 + μ), μ = 64 (§5.2).
+pub fn tonemap(x: f32) -> f32 {
+    (1.0 + 64.0 * x.max(0.0)).ln() / 65f32.ln()
+}
+
+/// PSNR (dB) between two RGB images in the tonemapped space.
+pub fn log_psnr(a: &[[f32; 4]], b: &[[f32; 4]]) -> f64 {
+    let mut se = 0.0f64;
+    for (p, q) in a.iter().zip(b) {
+        for k in 0..3 {
+            se += ((tonemap(p[k]) - tonemap(q[k])) as f64).powi(2);
+        }
+    }
+    let mse = se / (3 * a.len().max(1)) as f64;
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (1.0 / mse).log10()
+    }
+}
+
+/// A BC6H texture on the device, one layer per map.
+pub struct Bc6hTexture {
+    pub image: Image,
+}
+
+impl Bc6hTexture {
+    /// Uploads already-encoded layers (each `encode_bc6h` output of one width × height map).
+    pub fn upload(
+        gpu: &Arc<Gpu>,
+        width: u32,
+        height: u32,
+        layers: &[Vec<u8>],
+    ) -> Result<Bc6hTexture> {
+        if !gpu.caps.bc6h_sampled_linear {
+            return Err(Error::Device(
+                "the device cannot sample BC6H textures with linear filtering".into(),
+            ));
+        }
+        // The image extent is the padded one: blocks cover whole 4×4 tiles.
+        let (pw, ph) = (width.div_ceil(4) * 4, height.div_ceil(4) * 4);
+        let image = Image::new(
+            gpu,
+            "bc6h maps",
+            vk::Format::BC6H_UFLOAT_BLOCK,
+            pw,
+            ph,
+            layers.len() as u32,
+            vk::ImageUsageFlags::SAMPLED,
+        )?;
+        let bytes: Vec<u8> = layers.concat();
+        image.upload(&bytes, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)?;
+        Ok(Bc6hTexture { image })
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Push {
+    width: u32,
+    height: u32,
+    layer: u32,
+}
+
+/// Reads a layer of a sampled texture back through the sampler (`gpu/fetch.comp`).
+pub struct Fetch {
+    pipeline: Pipeline,
+    sampler: Sampler,
+}
+
+impl Fetch {
+    pub fn new(gpu: &Arc<Gpu>) -> Result<Fetch> {
+        Ok(Fetch {
+            pipeline: Pipeline::compute(gpu, "gpu/fetch.comp")?,
+            sampler: Sampler::linear(gpu)?,
+        })
+    }
+
+    /// The `width` × `height` top-left texels of `layer`, sampled at texel centres.
+    pub fn run(&self, image: &Image, layer: u32, width: u32, height: u32) -> Result<Vec<[f32; 4]>> {
+        let gpu = &self.pipeline.gpu;
+        // Texel centres of the padded image: sample with the padded size, keep the top-left.
+        let push = Push {
+            width: image.width,
+            height: image.height,
+            layer,
+        };
+        let full = Buffer::new(
+            gpu,
+            "fetch full",
+            (image.width * image.height) as u64 * 16,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::GpuOnly,
+        )?;
+        let mut res = Ok(());
+        gpu.submit(|cmd| {
+            res = self.pipeline.dispatch(
+                cmd,
+                &[
+                    (0, Bind::Sampled(image.view, self.sampler.raw)),
+                    (1, Bind::Buffer(&full)),
+                ],
+                bytes_of(&push),
+                (image.width, image.height, 1),
+            )
+        })?;
+        res?;
+        let all: Vec<[f32; 4]> = full.download_vec()?;
+        Ok((0..height)
+            .flat_map(|y| (0..width).map(move |x| (y * image.width + x) as usize))
+            .map(|i| all[i])
+            .collect())
+    }
+}
