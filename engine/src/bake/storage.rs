@@ -20,7 +20,13 @@ pub fn encode_bc6h(width: u32, height: u32, px: &[[f32; 4]], quality: Bc6hQualit
             let s = px[(y.min(height - 1) * width + x.min(width - 1)) as usize];
             let o = ((y * pw + x) * 4) as usize;
             for k in 0..3 {
-                data[o + k] = f16::from_f32(s[k].max(0.0).min(65000.0));
+                // BC6H UFLOAT holds [0, 65504]; non-finite values become 0.
+                let v = if s[k].is_finite() {
+                    s[k].clamp(0.0, 65000.0)
+                } else {
+                    0.0
+                };
+                data[o + k] = f16::from_f32(v);
             }
             data[o + 3] = f16::ONE;
         }
