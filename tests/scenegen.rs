@@ -218,3 +218,43 @@ fn synthetic_block_is_validated() {
         "{err}"
     );
 }
+
+#[test]
+fn mesh_processing_snaps_the_proxys_planes_and_smooths_it() {
+    use relit_engine::scene::meshproc::{smooth, snap_planes, vertex_normals, PlaneParams};
+    let d = common::tempdir("meshproc");
+    relit_scenegen::generate(&d, 4, &small()).unwrap();
+    let s = Scene::load(&d).unwrap();
+    // Floor vertices of the proxy: near y = 0 (noise and bumps up to ~2 cm), facing up.
+    let vn = vertex_normals(&s.mesh);
+    let floor: Vec<usize> = (0..s.mesh.positions.len())
+        .filter(|&i| s.mesh.positions[i][1].abs() < 0.03 && vn[i].y > 0.9)
+        .collect();
+    let spread = |m: &relit_engine::scene::Mesh| {
+        floor
+            .iter()
+            .map(|&i| (m.positions[i][1] as f64).powi(2))
+            .sum::<f64>()
+    };
+    let before = spread(&s.mesh);
+    let mut smoothed = s.mesh.clone();
+    smooth(&mut smoothed, 2);
+    assert!(
+        spread(&smoothed) < before,
+        "smoothing must flatten the bumpy floor"
+    );
+    let mut snapped = s.mesh.clone();
+    let planes = snap_planes(&mut snapped, &PlaneParams::default());
+    assert!(planes.len() >= 4, "floor, ceiling and walls: {planes:?}");
+    let fl = planes
+        .iter()
+        .find(|p| p.normal.y.abs() > 0.99 && p.d.abs() < 0.02)
+        .expect("a floor plane at y = 0");
+    assert!(fl.inliers > 400);
+    assert!(
+        spread(&snapped) < 0.25 * before,
+        "snapping must flatten the floor: {} -> {}",
+        before,
+        spread(&snapped)
+    );
+}

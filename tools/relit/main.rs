@@ -53,6 +53,9 @@ enum Cmd {
         /// After baking, compare with the scene's ground truth (synthetic scenes).
         #[arg(long)]
         eval: bool,
+        /// §4.4 geometry processing of the proxy first: smoothing and RANSAC plane snapping.
+        #[arg(long)]
+        mesh_process: bool,
     },
     /// Benchmarks (GPU timestamps; figures, never pass/fail).
     Bench {
@@ -384,7 +387,7 @@ fn bake(
     }
     println!("done in {:.1} s", t0.elapsed().as_secs_f64());
     if eval && report.albedo_mesh {
-        let a = relit_engine::bake::accuracy::evaluate(&gpu, &scene, &report.cache)?;
+        let a = relit_engine::bake::accuracy::evaluate(&gpu, &scene, p, &report.cache)?;
         println!(
             "accuracy against ground truth ({} views; median relative error, pixels):",
             a.views
@@ -458,12 +461,14 @@ fn main() {
             rays,
             added_samples,
             eval,
+            mesh_process,
         } => {
             let mut p = match quality {
                 Quality::Preview => relit_engine::bake::BakeParams::preview(),
                 Quality::Final => relit_engine::bake::BakeParams::final_quality(),
             };
             p.views = views.clone();
+            p.mesh_process = *mesh_process;
             if let Some(r) = rays {
                 p.irradiance_samples = *r;
             }

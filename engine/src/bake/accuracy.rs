@@ -44,7 +44,14 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, cache: &Path) -> Result<Accuracy> {
+/// `p`: the parameters the cache was baked with (they decide the traced mesh).
+pub fn evaluate(
+    gpu: &Arc<Gpu>,
+    scene: &Scene,
+    p: &super::BakeParams,
+    cache: &Path,
+) -> Result<Accuracy> {
+    let geom = super::run::bake_mesh(scene, p);
     let syn = scene.synthetic.as_ref().ok_or_else(|| {
         Error::Other(format!(
             "{}: no ground truth (not a synthetic scene)",
@@ -52,7 +59,7 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, cache: &Path) -> Result<Accuracy>
         ))
     })?;
     let gt = scene.root.join(&syn.ground_truth);
-    let mesh = RayScene::new(gpu, &scene.mesh.positions, &scene.mesh.triangles)?;
+    let mesh = RayScene::new(gpu, &geom.positions, &geom.triangles)?;
     let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
     let imgs = scene
         .views
@@ -127,8 +134,8 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, cache: &Path) -> Result<Accuracy>
                 );
             }
             if d.tri[gi] > 0 {
-                let t = scene.mesh.triangles[(d.tri[gi] - 1) as usize];
-                let [a, b, c] = t.map(|k| Vec3::from(scene.mesh.positions[k as usize]));
+                let t = geom.triangles[(d.tri[gi] - 1) as usize];
+                let [a, b, c] = t.map(|k| Vec3::from(geom.positions[k as usize]));
                 let x = Vec3::from_slice(&d.pos[gi][..3]);
                 // Barycentrics of x in the triangle.
                 let (v0, v1, v2) = (b - a, c - a, x - a);

@@ -38,6 +38,19 @@ pub struct BakeParams {
     pub views: Option<Range<usize>>,
     /// The E_src denoiser (radius 0: off).
     pub denoise: DenoiseParams,
+    /// §4.4 geometry processing of the proxy before baking: Taubin smoothing and RANSAC plane
+    /// snapping (off by default).
+    pub mesh_process: bool,
+}
+
+/// The proxy mesh the bake traces: the scene's, processed when `p.mesh_process` (§4.4).
+pub fn bake_mesh(scene: &Scene, p: &BakeParams) -> crate::scene::Mesh {
+    let mut m = scene.mesh.clone();
+    if p.mesh_process {
+        crate::scene::meshproc::smooth(&mut m, 2);
+        crate::scene::meshproc::snap_planes(&mut m, &Default::default());
+    }
+    m
 }
 
 impl BakeParams {
@@ -49,6 +62,7 @@ impl BakeParams {
             seed: 1,
             views: None,
             denoise: DenoiseParams::default(),
+            mesh_process: false,
         }
     }
     pub fn preview() -> BakeParams {
@@ -59,6 +73,7 @@ impl BakeParams {
             seed: 1,
             views: None,
             denoise: DenoiseParams::default(),
+            mesh_process: false,
         }
     }
 }
@@ -111,6 +126,7 @@ pub fn cache_dir(scene: &Scene, p: &BakeParams) -> Result<PathBuf> {
     for v in [p.irradiance_samples, p.added_samples, p.bounces, p.seed] {
         h.bytes(&v.to_le_bytes());
     }
+    h.bytes(&[p.mesh_process as u8]);
     let d = p.denoise;
     for v in [d.radius as f32, d.sigma_px, d.sigma_depth, d.normal_power] {
         h.bytes(&v.to_le_bytes());
@@ -214,7 +230,8 @@ pub fn bake(
         .map(|v| load_rgb(&v.image))
         .collect::<Result<Vec<_>>>()?;
     let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
-    let mesh = RayScene::new(gpu, &scene.mesh.positions, &scene.mesh.triangles)?;
+    let geom = bake_mesh(scene, p);
+    let mesh = RayScene::new(gpu, &geom.positions, &geom.triangles)?;
     let data = ViewData::build(gpu, &mesh, &cams, &images)?;
     let views = GpuViews::upload(gpu, &data)?;
     let (w, h) = (data.width, data.height);

@@ -7,6 +7,7 @@ mod colmap;
 pub mod image;
 mod json;
 pub mod mesh;
+pub mod meshproc;
 mod sibr;
 pub mod synth;
 
