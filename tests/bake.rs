@@ -426,14 +426,9 @@ fn bake_accuracy_against_mitsuba_ground_truth() {
     );
     let scene = relit_engine::scene::Scene::load(&dir).unwrap();
     let gpu = common::gpu();
-    let report = bake(
-        &gpu,
-        &scene,
-        &BakeParams::final_quality(),
-        &mut |_: &str, _, _, _| {},
-    )
-    .unwrap();
-    let a = accuracy::evaluate(&gpu, &scene, &report.cache).unwrap();
+    let params = BakeParams::final_quality();
+    let report = bake(&gpu, &scene, &params, &mut |_: &str, _, _, _| {}).unwrap();
+    let a = accuracy::evaluate(&gpu, &scene, &params, &report.cache).unwrap();
     eprintln!("{a:?}");
     // Median relative errors per pixel (luminance). Measured 0.14 / 0.14 / 0.21 at this size
     // (0.32 / 0.28 / 0.22 without the denoiser): the 8 views of 48×36 pixels are coarse
