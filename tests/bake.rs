@@ -280,9 +280,34 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
     let reference = cache_files(&a);
     assert_eq!(
         reference.len(),
-        1 + 4 * (2 + 2),
-        "albedo + per view: E_src, M_src, 2 × E_add"
+        1 + 2 * 4 * (2 + 2),
+        "albedo + per view: E_src, M_src, 2 × E_add, each as EXR and BC6H"
     );
+    // The BC6H copies load as one texture array and decode on the device close to the EXRs.
+    {
+        use relit_engine::bake::storage::{log_psnr, Bc6hTexture, Fetch};
+        let gpu = common::gpu();
+        let cache = std::fs::read_dir(a.join(".relit"))
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap()
+            .path();
+        let mut exrs: Vec<_> = (0..4)
+            .map(|i| cache.join(format!("v{i:03}.esrc.exr")))
+            .collect();
+        exrs.sort();
+        let bc: Vec<_> = exrs.iter().map(|e| e.with_extension("bc6h")).collect();
+        let tex = Bc6hTexture::from_files(&gpu, &bc).unwrap();
+        let fetch = Fetch::new(&gpu).unwrap();
+        for (layer, e) in exrs.iter().enumerate() {
+            let src = relit_engine::bake::run::load_view_map(e).unwrap();
+            let got = fetch.run(&tex.image, layer as u32, 24, 18).unwrap();
+            let psnr = log_psnr(&got, &src);
+            assert!(psnr > 40.0, "layer {layer}: {psnr:.1} dB");
+        }
+        common::assert_no_validation_errors(&gpu);
+    }
 
     // Killed as soon as the first view's map lands, then resumed.
     let b = bake_scene("bake-kill");
@@ -368,7 +393,11 @@ fn view_slices_bake_separately_and_join() {
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("wait for every view"), "{text}");
-    assert_eq!(cache_files(&d).len(), 2, "only the slice's E_src");
+    assert_eq!(
+        cache_files(&d).len(),
+        2 * 2,
+        "only the slice's E_src (EXR + BC6H)"
+    );
     let out = relit(&[
         "bake",
         s,
@@ -382,8 +411,8 @@ fn view_slices_bake_separately_and_join() {
     assert!(out.status.success());
     assert_eq!(
         cache_files(&d).len(),
-        1 + 4 + 2 * (1 + 2),
-        "albedo, 4 E_src, then slice 2..4's maps"
+        1 + 2 * (4 + 2 * (1 + 2)),
+        "albedo, 4 E_src, then slice 2..4's maps, each as EXR and BC6H"
     );
     let out = relit(&[
         "bake",

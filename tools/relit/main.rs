@@ -56,6 +56,9 @@ enum Cmd {
         /// §4.4 geometry processing of the proxy first: smoothing and RANSAC plane snapping.
         #[arg(long)]
         mesh_process: bool,
+        /// Keep the maps uncompressed only (half-float EXR), without their BC6H copies.
+        #[arg(long)]
+        uncompressed: bool,
     },
     /// Benchmarks (GPU timestamps; figures, never pass/fail).
     Bench {
@@ -462,6 +465,7 @@ fn main() {
             added_samples,
             eval,
             mesh_process,
+            uncompressed,
         } => {
             let mut p = match quality {
                 Quality::Preview => relit_engine::bake::BakeParams::preview(),
@@ -469,6 +473,7 @@ fn main() {
             };
             p.views = views.clone();
             p.mesh_process = *mesh_process;
+            p.compress = !*uncompressed;
             if let Some(r) = rays {
                 p.irradiance_samples = *r;
             }

@@ -38,6 +38,8 @@ pub struct BakeParams {
     pub views: Option<Range<usize>>,
     /// The E_src denoiser (radius 0: off).
     pub denoise: DenoiseParams,
+    /// Also store every map as BC6H (`<map>.bc6h`); off = the uncompressed switch (EXR only).
+    pub compress: bool,
     /// §4.4 geometry processing of the proxy before baking: Taubin smoothing and RANSAC plane
     /// snapping (off by default).
     pub mesh_process: bool,
@@ -63,6 +65,7 @@ impl BakeParams {
             views: None,
             denoise: DenoiseParams::default(),
             mesh_process: false,
+            compress: true,
         }
     }
     pub fn preview() -> BakeParams {
@@ -74,6 +77,7 @@ impl BakeParams {
             views: None,
             denoise: DenoiseParams::default(),
             mesh_process: false,
+            compress: true,
         }
     }
 }
@@ -301,6 +305,9 @@ pub fn bake(
         .all(|v| esrc_file(&cache, &v.name).exists());
     let nverts = scene.mesh.positions.len();
     if !have_all {
+        if p.compress {
+            compress_missing(&cache)?;
+        }
         return Ok(report);
     }
     let albedo = if albedo_file(&cache).exists() {
@@ -392,7 +399,37 @@ pub fn bake(
         .stages
         .push(("added irradiance".into(), added_s, added_rays, added_done));
     report.complete_views = slice.len();
+    if p.compress {
+        compress_missing(&cache)?;
+    }
     Ok(report)
+}
+
+/// BC6H copy of a cached map: `v000.esrc.exr` → `v000.esrc.bc6h`.
+pub fn bc6h_file(exr: &Path) -> PathBuf {
+    exr.with_extension("bc6h")
+}
+
+/// Encodes every cached EXR map that has no BC6H copy yet (the EXR is the finished entry; its
+/// BC6H copy is derived, so a kill between the two only costs a re-encode).
+fn compress_missing(cache: &Path) -> Result<()> {
+    let rd = std::fs::read_dir(cache).map_err(|e| Error::io(cache, e))?;
+    for e in rd.flatten() {
+        let path = e.path();
+        if path.extension().is_none_or(|x| x != "exr") || bc6h_file(&path).exists() {
+            continue;
+        }
+        let img = load_rgb(&path)?;
+        let px: Vec<[f32; 4]> = from_image(&img);
+        let blocks = super::storage::encode_bc6h(
+            img.width,
+            img.height,
+            &px,
+            super::storage::Bc6hQuality::Basic,
+        );
+        super::storage::write_bc6h(&bc6h_file(&path), img.width, img.height, &blocks)?;
+    }
+    Ok(())
 }
 
 /// The cached maps of one view, for the frame passes and the tests.

@@ -73,12 +73,65 @@ pub fn log_psnr(a: &[[f32; 4]], b: &[[f32; 4]]) -> f64 {
     }
 }
 
+/// A BC6H map file: "RBC6", width, height (u32 LE), then the blocks. Written atomically.
+pub fn write_bc6h(path: &std::path::Path, width: u32, height: u32, blocks: &[u8]) -> Result<()> {
+    let mut out = b"RBC6".to_vec();
+    out.extend_from_slice(&width.to_le_bytes());
+    out.extend_from_slice(&height.to_le_bytes());
+    out.extend_from_slice(blocks);
+    crate::scene::write_atomic(path, &out)
+}
+
+/// Reads a BC6H map file: (width, height, blocks).
+pub fn read_bc6h(path: &std::path::Path) -> Result<(u32, u32, Vec<u8>)> {
+    let b = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if b.len() < 12 || &b[..4] != b"RBC6" {
+        return Err(Error::input(
+            path,
+            "not a BC6H map file (expected the RBC6 header)",
+        ));
+    }
+    let w = u32::from_le_bytes(b[4..8].try_into().unwrap());
+    let h = u32::from_le_bytes(b[8..12].try_into().unwrap());
+    let expect = (w.div_ceil(4) * h.div_ceil(4) * 16) as usize;
+    if b.len() != 12 + expect {
+        return Err(Error::input(
+            path,
+            format!(
+                "{}x{} needs {expect} bytes of blocks, file has {}",
+                w,
+                h,
+                b.len() - 12
+            ),
+        ));
+    }
+    Ok((w, h, b[12..].to_vec()))
+}
+
 /// A BC6H texture on the device, one layer per map.
 pub struct Bc6hTexture {
     pub image: Image,
 }
 
 impl Bc6hTexture {
+    /// A texture array of cached BC6H maps (all of one size), one layer per file in order.
+    pub fn from_files(gpu: &Arc<Gpu>, files: &[std::path::PathBuf]) -> Result<Bc6hTexture> {
+        let mut layers = Vec::with_capacity(files.len());
+        let mut size = None;
+        for f in files {
+            let (w, h, blocks) = read_bc6h(f)?;
+            if *size.get_or_insert((w, h)) != (w, h) {
+                return Err(Error::input(
+                    f,
+                    "maps of one texture array must share one size",
+                ));
+            }
+            layers.push(blocks);
+        }
+        let (w, h) = size.ok_or_else(|| Error::Other("no BC6H maps given".into()))?;
+        Bc6hTexture::upload(gpu, w, h, &layers)
+    }
+
     /// Uploads already-encoded layers (each `encode_bc6h` output of one width × height map).
     pub fn upload(
         gpu: &Arc<Gpu>,
