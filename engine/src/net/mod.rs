@@ -1,12 +1,23 @@
-//! The network's compute kernels (§5.1). Every kernel has a portable backend and a
-//! cooperative-matrix backend (`*_cm.comp`) built from one tiling (a shared include), chosen
-//! at run time from the device's capabilities.
+//! The network of §5.1 in compute shaders. Every matrix kernel has a portable backend and a
+//! cooperative-matrix backend (`*_cm.comp`) that share one include (bindings, packing, tiling,
+//! epilogue), chosen at run time from the device's capabilities.
 
+mod conv;
 mod gemm;
+mod model;
 
+pub use conv::{
+    conv_reference, pack_weights, upsample_add_reference, Conv, Epilogue, NetKernels, Storage,
+    Tensor, OCB,
+};
 pub use gemm::Gemm;
+pub use model::{NetBuffers, NetConfig, Network, Params, SafetensorsParams};
 
 use crate::gpu::{vk, Caps};
+
+/// Channels of the network input (§5: 8 + 8 composites, target mirror, 3 irradiance composites
+/// and 6 extra features; the order is in `frame::features`).
+pub const INPUT_CHANNELS: u32 = 66;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Backend {

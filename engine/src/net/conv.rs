@@ -1,0 +1,472 @@
+//! Convolution and upsample-and-add kernels of the network (§5.1), on "pack4" tensors
+//! (`shaders_glsl/net/conv.glsl`). One generic conv kernel serves the 3×3 convs of the fixup
+//! blocks, the 4×4 stride-2 downsampling and the output conv; its epilogue fuses the fixup
+//! scalars, per-channel bias, residual and ReLU.
+
+use std::sync::Arc;
+
+use half::f16;
+
+use super::{select_backend, Backend};
+use crate::error::{Error, Result};
+use crate::gpu::{bytes_of, full_barrier, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline};
+
+/// Element type of activations and weights in device memory (arithmetic is fp32 either way).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Storage {
+    F16,
+    F32,
+}
+
+impl Storage {
+    pub fn bytes(self) -> u64 {
+        match self {
+            Storage::F16 => 2,
+            Storage::F32 => 4,
+        }
+    }
+}
+
+/// Output channels per block (`OCB` in conv.glsl).
+pub const OCB: u32 = 16;
+/// Output pixels per portable invocation (`PX` in conv_portable.glsl).
+const PX: u32 = 8;
+
+/// A feature map in pack4 layout: channel groups of 4, index `(c4 * h + y) * w + x`.
+pub struct Tensor {
+    pub buf: Buffer,
+    pub c: u32,
+    pub h: u32,
+    pub w: u32,
+    pub storage: Storage,
+}
+
+impl Tensor {
+    pub fn new(
+        gpu: &Arc<Gpu>,
+        name: &str,
+        c: u32,
+        h: u32,
+        w: u32,
+        storage: Storage,
+    ) -> Result<Tensor> {
+        let size = (c.div_ceil(4) * 4 * h * w) as u64 * storage.bytes();
+        let buf = Buffer::new(
+            gpu,
+            name,
+            size.max(16),
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuOnly,
+        )?;
+        Ok(Tensor {
+            buf,
+            c,
+            h,
+            w,
+            storage,
+        })
+    }
+
+    pub fn c4(&self) -> u32 {
+        self.c.div_ceil(4)
+    }
+
+    /// Converts planar CHW floats to this tensor's layout and element type.
+    pub fn pack(&self, chw: &[f32]) -> Vec<u8> {
+        let hw = (self.h * self.w) as usize;
+        let mut v = vec![0f32; self.c4() as usize * 4 * hw];
+        for c in 0..self.c as usize {
+            for i in 0..hw {
+                v[((c / 4) * hw + i) * 4 + c % 4] = chw[c * hw + i];
+            }
+        }
+        match self.storage {
+            Storage::F32 => bytemuck::cast_slice(&v).to_vec(),
+            Storage::F16 => {
+                let h: Vec<f16> = v.iter().map(|&x| f16::from_f32(x)).collect();
+                bytemuck::cast_slice(&h).to_vec()
+            }
+        }
+    }
+
+    pub fn upload_chw(&self, chw: &[f32]) -> Result<()> {
+        if chw.len() != (self.c * self.h * self.w) as usize {
+            return Err(Error::Other(format!(
+                "tensor upload: {} values for {}x{}x{}",
+                chw.len(),
+                self.c,
+                self.h,
+                self.w
+            )));
+        }
+        self.buf.upload(&self.pack(chw))
+    }
+
+    /// Planar CHW floats (real channels only).
+    pub fn download_chw(&self) -> Result<Vec<f32>> {
+        let hw = (self.h * self.w) as usize;
+        let n = self.c4() as usize * 4 * hw;
+        let bytes = self
+            .buf
+            .download_range(0, n as u64 * self.storage.bytes())?;
+        let v: Vec<f32> = match self.storage {
+            Storage::F32 => bytemuck::pod_collect_to_vec(&bytes),
+            Storage::F16 => bytemuck::pod_collect_to_vec::<u8, f16>(&bytes)
+                .iter()
+                .map(|x| x.to_f32())
+                .collect(),
+        };
+        let mut out = vec![0f32; self.c as usize * hw];
+        for c in 0..self.c as usize {
+            for i in 0..hw {
+                out[c * hw + i] = v[((c / 4) * hw + i) * 4 + c % 4];
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// A convolution layer with its weights packed for the kernels:
+/// `[ocb][tap][ic padded to 16][16 output channels]`.
+pub struct Conv {
+    weights: Buffer,
+    bias: Buffer,
+    pub ic: u32,
+    pub oc: u32,
+    pub k: u32,
+    pub stride: u32,
+    pub pad: u32,
+    icp: u32,
+}
+
+/// Packs OIHW weights (PyTorch order) into the kernels' order; returns (packed, icp, blocks).
+pub fn pack_weights(w: &[f32], oc: u32, ic: u32, k: u32) -> (Vec<f32>, u32, u32) {
+    let icp = ic.div_ceil(16) * 16;
+    let blocks = oc.div_ceil(OCB);
+    let taps = k * k;
+    let mut p = vec![0f32; (blocks * taps * icp * OCB) as usize];
+    for o in 0..oc {
+        for i in 0..ic {
+            for t in 0..taps {
+                let src = ((o * ic + i) * taps + t) as usize;
+                let dst = (((o / OCB * taps + t) * icp + i) * OCB + o % OCB) as usize;
+                p[dst] = w[src];
+            }
+        }
+    }
+    (p, icp, blocks)
+}
+
+impl Conv {
+    /// `weights` in OIHW order (`oc × ic × k × k`), `bias` per output channel.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        gpu: &Arc<Gpu>,
+        storage: Storage,
+        weights: &[f32],
+        bias: Option<&[f32]>,
+        oc: u32,
+        ic: u32,
+        k: u32,
+        stride: u32,
+        pad: u32,
+    ) -> Result<Conv> {
+        let (packed, icp, blocks) = pack_weights(weights, oc, ic, k);
+        let u = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let wbuf = match storage {
+            Storage::F32 => Buffer::from_slice(gpu, "conv weights", u, &packed)?,
+            Storage::F16 => {
+                let h: Vec<f16> = packed.iter().map(|&x| f16::from_f32(x)).collect();
+                Buffer::from_slice(gpu, "conv weights", u, &h)?
+            }
+        };
+        let mut b = vec![0f32; (blocks * OCB) as usize];
+        if let Some(bias) = bias {
+            b[..oc as usize].copy_from_slice(bias);
+        }
+        Ok(Conv {
+            weights: wbuf,
+            bias: Buffer::from_slice(gpu, "conv bias", u, &b)?,
+            ic,
+            oc,
+            k,
+            stride,
+            pad,
+            icp,
+        })
+    }
+
+    pub fn out_size(&self, h: u32, w: u32) -> (u32, u32) {
+        (
+            (h + 2 * self.pad - self.k) / self.stride + 1,
+            (w + 2 * self.pad - self.k) / self.stride + 1,
+        )
+    }
+
+    /// Multiply-adds × 2 at an input of h × w.
+    pub fn flops(&self, h: u32, w: u32) -> f64 {
+        let (oh, ow) = self.out_size(h, w);
+        2.0 * (oh * ow) as f64 * (self.oc * self.ic * self.k * self.k) as f64
+    }
+}
+
+/// The scalars and flags fused after a convolution:
+/// `y = relu?((conv(x + in_bias) + bias) * scale + out_bias + residual?)`.
+#[derive(Clone, Copy)]
+pub struct Epilogue<'a> {
+    pub in_bias: f32,
+    pub out_bias: f32,
+    pub scale: f32,
+    pub relu: bool,
+    pub residual: Option<&'a Tensor>,
+}
+
+impl Default for Epilogue<'_> {
+    fn default() -> Self {
+        Epilogue {
+            in_bias: 0.0,
+            out_bias: 0.0,
+            scale: 1.0,
+            relu: false,
+            residual: None,
+        }
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ConvPush {
+    in_w: u32,
+    in_h: u32,
+    in_c4: u32,
+    out_w: u32,
+    out_h: u32,
+    out_c: u32,
+    ksize: u32,
+    stride: u32,
+    pad: u32,
+    icp: u32,
+    in_bias: f32,
+    out_bias: f32,
+    scale: f32,
+    flags: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct UpPush {
+    src_w: u32,
+    src_h: u32,
+    dst_w: u32,
+    dst_h: u32,
+    c4: u32,
+}
+
+/// The network's pipelines for one storage type and backend.
+pub struct NetKernels {
+    pub backend: Backend,
+    pub storage: Storage,
+    conv: Pipeline,
+    up: Pipeline,
+    pub gpu: Arc<Gpu>,
+}
+
+impl NetKernels {
+    /// The backend the device supports: cooperative matrices need fp16 storage.
+    pub fn new(gpu: &Arc<Gpu>, storage: Storage) -> Result<NetKernels> {
+        let backend = match storage {
+            Storage::F16 => select_backend(&gpu.caps),
+            Storage::F32 => Backend::Portable,
+        };
+        NetKernels::with_backend(gpu, storage, backend)
+    }
+
+    pub fn with_backend(gpu: &Arc<Gpu>, storage: Storage, backend: Backend) -> Result<NetKernels> {
+        let conv = match (storage, backend) {
+            (Storage::F16, Backend::CoopMatrix) => "net/conv_cm.comp",
+            (Storage::F16, Backend::Portable) => "net/conv.comp",
+            (Storage::F32, Backend::Portable) => "net/conv_f32.comp",
+            (Storage::F32, Backend::CoopMatrix) => {
+                return Err(Error::Other(
+                    "the cooperative-matrix kernels need fp16 storage".into(),
+                ))
+            }
+        };
+        let up = match storage {
+            Storage::F16 => "net/upsample_add.comp",
+            Storage::F32 => "net/upsample_add_f32.comp",
+        };
+        Ok(NetKernels {
+            backend,
+            storage,
+            conv: Pipeline::compute(gpu, conv)?,
+            up: Pipeline::compute(gpu, up)?,
+            gpu: gpu.clone(),
+        })
+    }
+
+    /// Records `out = epilogue(conv(input))` and a barrier.
+    pub fn conv(
+        &self,
+        cmd: vk::CommandBuffer,
+        layer: &Conv,
+        input: &Tensor,
+        out: &Tensor,
+        ep: Epilogue,
+    ) -> Result<()> {
+        let (oh, ow) = layer.out_size(input.h, input.w);
+        if input.c != layer.ic || out.c != layer.oc || (out.h, out.w) != (oh, ow) {
+            return Err(Error::Other(format!(
+                "conv {}→{} k{} s{}: input {}x{}x{}, output {}x{}x{} (expected {}x{}x{})",
+                layer.ic,
+                layer.oc,
+                layer.k,
+                layer.stride,
+                input.c,
+                input.h,
+                input.w,
+                out.c,
+                out.h,
+                out.w,
+                layer.oc,
+                oh,
+                ow
+            )));
+        }
+        let push = ConvPush {
+            in_w: input.w,
+            in_h: input.h,
+            in_c4: input.c4(),
+            out_w: ow,
+            out_h: oh,
+            out_c: layer.oc,
+            ksize: layer.k,
+            stride: layer.stride,
+            pad: layer.pad,
+            icp: layer.icp,
+            in_bias: ep.in_bias,
+            out_bias: ep.out_bias,
+            scale: ep.scale,
+            flags: u32::from(ep.relu) | if ep.residual.is_some() { 2 } else { 0 },
+        };
+        let res = ep.residual.unwrap_or(input);
+        let binds = [
+            (0, Bind::Buffer(&input.buf)),
+            (1, Bind::Buffer(&layer.weights)),
+            (2, Bind::Buffer(&layer.bias)),
+            (3, Bind::Buffer(&res.buf)),
+            (4, Bind::Buffer(&out.buf)),
+        ];
+        let blocks = layer.oc.div_ceil(OCB);
+        let groups = match self.backend {
+            Backend::Portable => (ow.div_ceil(PX * 8), oh.div_ceil(8), blocks),
+            Backend::CoopMatrix => (ow.div_ceil(16), oh, blocks),
+        };
+        self.conv
+            .dispatch_groups(cmd, &binds, bytes_of(&push), groups)?;
+        full_barrier(&self.gpu, cmd);
+        Ok(())
+    }
+
+    /// Records `dst += bilinear_upsample(src)` and a barrier.
+    pub fn upsample_add(&self, cmd: vk::CommandBuffer, src: &Tensor, dst: &Tensor) -> Result<()> {
+        if src.c != dst.c {
+            return Err(Error::Other("upsample_add: channel counts differ".into()));
+        }
+        let push = UpPush {
+            src_w: src.w,
+            src_h: src.h,
+            dst_w: dst.w,
+            dst_h: dst.h,
+            c4: dst.c4(),
+        };
+        self.up.dispatch(
+            cmd,
+            &[(0, Bind::Buffer(&src.buf)), (1, Bind::Buffer(&dst.buf))],
+            bytes_of(&push),
+            (dst.w * dst.h * dst.c4(), 1, 1),
+        )?;
+        full_barrier(&self.gpu, cmd);
+        Ok(())
+    }
+}
+
+/// CPU reference of [`NetKernels::conv`] on planar CHW data (OIHW weights), in f64.
+#[allow(clippy::too_many_arguments)]
+pub fn conv_reference(
+    x: &[f32],
+    (c, h, w): (u32, u32, u32),
+    weights: &[f32],
+    bias: &[f32],
+    oc: u32,
+    (k, stride, pad): (u32, u32, u32),
+    in_bias: f32,
+    out_bias: f32,
+    scale: f32,
+    relu: bool,
+    residual: Option<&[f32]>,
+) -> Vec<f32> {
+    let oh = (h + 2 * pad - k) / stride + 1;
+    let ow = (w + 2 * pad - k) / stride + 1;
+    let mut out = vec![0f32; (oc * oh * ow) as usize];
+    for o in 0..oc {
+        for y in 0..oh {
+            for xo in 0..ow {
+                let mut acc = 0f64;
+                for i in 0..c {
+                    for ky in 0..k {
+                        for kx in 0..k {
+                            let iy = (y * stride + ky) as i64 - pad as i64;
+                            let ix = (xo * stride + kx) as i64 - pad as i64;
+                            if iy < 0 || ix < 0 || iy >= h as i64 || ix >= w as i64 {
+                                continue;
+                            }
+                            let v = x[((i * h) as i64 * w as i64 + iy * w as i64 + ix) as usize]
+                                as f64
+                                + in_bias as f64;
+                            acc += v * weights[(((o * c + i) * k + ky) * k + kx) as usize] as f64;
+                        }
+                    }
+                }
+                let idx = ((o * oh + y) * ow + xo) as usize;
+                let mut v = (acc + bias[o as usize] as f64) * scale as f64 + out_bias as f64;
+                if let Some(r) = residual {
+                    v += r[idx] as f64;
+                }
+                if relu {
+                    v = v.max(0.0);
+                }
+                out[idx] = v as f32;
+            }
+        }
+    }
+    out
+}
+
+/// CPU reference of [`NetKernels::upsample_add`]: `dst + up(src)`, planar CHW.
+pub fn upsample_add_reference(
+    src: &[f32],
+    (c, sh, sw): (u32, u32, u32),
+    dst: &[f32],
+    (dh, dw): (u32, u32),
+) -> Vec<f32> {
+    let coord = |d: u32, n_in: u32, n_out: u32| {
+        let s = ((d as f64 + 0.5) * n_in as f64 / n_out as f64 - 0.5).max(0.0);
+        let i0 = (s as u32).min(n_in - 1);
+        (i0, (i0 + 1).min(n_in - 1), s - i0 as f64)
+    };
+    let mut out = dst.to_vec();
+    for ch in 0..c {
+        for y in 0..dh {
+            let (y0, y1, fy) = coord(y, sh, dh);
+            for x in 0..dw {
+                let (x0, x1, fx) = coord(x, sw, dw);
+                let at = |yy: u32, xx: u32| src[((ch * sh + yy) * sw + xx) as usize] as f64;
+                let top = at(y0, x0) * (1.0 - fx) + at(y0, x1) * fx;
+                let bot = at(y1, x0) * (1.0 - fx) + at(y1, x1) * fx;
+                out[((ch * dh + y) * dw + x) as usize] += (top * (1.0 - fy) + bot * fy) as f32;
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,419 @@
+//! The relighting network of §5.1 (reference: `tools/train/model.py`): weights from a
+//! safetensors file whose metadata key `relit.net` holds the configuration as JSON, run as a
+//! sequence of conv / upsample-add dispatches on pack4 tensors.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use half::{bf16, f16};
+use serde::{Deserialize, Serialize};
+
+use super::conv::{Conv, Epilogue, NetKernels, Storage, Tensor};
+use crate::error::{Error, Result};
+use crate::gpu::{vk, Gpu, Timer};
+
+/// The network's shape (the paper: 66 in, width 66, 4 / 5×4 / 2 blocks, 6 out).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NetConfig {
+    pub in_channels: u32,
+    pub width: u32,
+    pub trunk_blocks: u32,
+    pub levels: u32,
+    pub level_blocks: u32,
+    pub tail_blocks: u32,
+    pub out_channels: u32,
+}
+
+impl NetConfig {
+    pub fn paper(width: u32) -> NetConfig {
+        NetConfig {
+            in_channels: super::INPUT_CHANNELS,
+            width,
+            trunk_blocks: 4,
+            levels: 5,
+            level_blocks: 4,
+            tail_blocks: 2,
+            out_channels: 6,
+        }
+    }
+}
+
+/// A fixup block: `relu(conv2(relu(conv1(x + b1a) + b1b) + b2a) * scale + b2b + x)`.
+struct Block {
+    conv1: Conv,
+    conv2: Conv,
+    bias1a: f32,
+    bias1b: f32,
+    bias2a: f32,
+    scale: f32,
+    bias2b: f32,
+}
+
+/// Named parameters (OIHW or scalar), as f32.
+pub trait Params {
+    fn get(&self, name: &str, shape: &[usize]) -> Result<Vec<f32>>;
+}
+
+/// Parameters from a safetensors file.
+pub struct SafetensorsParams {
+    path: std::path::PathBuf,
+    bytes: Vec<u8>,
+}
+
+impl SafetensorsParams {
+    pub fn open(path: &Path) -> Result<(SafetensorsParams, NetConfig)> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let (_, meta) = safetensors::SafeTensors::read_metadata(&bytes)
+            .map_err(|e| Error::input(path, format!("not a safetensors file: {e}")))?;
+        let cfg = meta
+            .metadata()
+            .as_ref()
+            .and_then(|m| m.get("relit.net"))
+            .ok_or_else(|| {
+                Error::input(
+                    path,
+                    "metadata key \"relit.net\" (the network configuration as JSON) is missing",
+                )
+            })?;
+        let cfg: NetConfig = serde_json::from_str(cfg)
+            .map_err(|e| Error::input(path, format!("metadata \"relit.net\": {e}")))?;
+        if cfg.width == 0 || cfg.levels == 0 || cfg.in_channels == 0 || cfg.out_channels == 0 {
+            return Err(Error::input(
+                path,
+                "metadata \"relit.net\": width, levels, in_channels and out_channels must be > 0",
+            ));
+        }
+        Ok((
+            SafetensorsParams {
+                path: path.to_path_buf(),
+                bytes,
+            },
+            cfg,
+        ))
+    }
+}
+
+impl Params for SafetensorsParams {
+    fn get(&self, name: &str, shape: &[usize]) -> Result<Vec<f32>> {
+        let st = safetensors::SafeTensors::deserialize(&self.bytes)
+            .map_err(|e| Error::input(&self.path, format!("not a safetensors file: {e}")))?;
+        let t = st
+            .tensor(name)
+            .map_err(|_| Error::input(&self.path, format!("tensor \"{name}\" is missing")))?;
+        if t.shape() != shape {
+            return Err(Error::input(
+                &self.path,
+                format!(
+                    "tensor \"{name}\": shape {:?}, expected {shape:?}",
+                    t.shape()
+                ),
+            ));
+        }
+        let d = t.data();
+        let v: Vec<f32> = match t.dtype() {
+            safetensors::Dtype::F32 => bytemuck::pod_collect_to_vec(d),
+            safetensors::Dtype::F16 => bytemuck::pod_collect_to_vec::<u8, f16>(d)
+                .iter()
+                .map(|x| x.to_f32())
+                .collect(),
+            safetensors::Dtype::BF16 => bytemuck::pod_collect_to_vec::<u8, bf16>(d)
+                .iter()
+                .map(|x| x.to_f32())
+                .collect(),
+            other => {
+                return Err(Error::input(
+                    &self.path,
+                    format!("tensor \"{name}\": dtype {other:?}, expected F32, F16 or BF16"),
+                ))
+            }
+        };
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return Err(Error::input(
+                &self.path,
+                format!("tensor \"{name}\": element {i} is not finite"),
+            ));
+        }
+        Ok(v)
+    }
+}
+
+/// Intermediate tensors for one input size: three per pyramid level plus the output.
+pub struct NetBuffers {
+    levels: Vec<[Tensor; 3]>,
+    pub out: Tensor,
+    pub h: u32,
+    pub w: u32,
+}
+
+pub struct Network {
+    pub config: NetConfig,
+    pub kernels: NetKernels,
+    in_conv: Option<Conv>,
+    trunk: Vec<Block>,
+    down: Vec<Conv>,
+    levels: Vec<Vec<Block>>,
+    tail: Vec<Block>,
+    out_conv: Conv,
+}
+
+impl Network {
+    pub fn load(gpu: &Arc<Gpu>, path: &Path, storage: Storage) -> Result<Network> {
+        let (params, cfg) = SafetensorsParams::open(path)?;
+        Network::from_params(NetKernels::new(gpu, storage)?, cfg, &params)
+    }
+
+    pub fn from_params(kernels: NetKernels, config: NetConfig, p: &dyn Params) -> Result<Network> {
+        let gpu = kernels.gpu.clone();
+        let st = kernels.storage;
+        let w = config.width as usize;
+        let conv = |name: &str, oc: usize, ic: usize, k: usize, stride: u32, bias: bool| {
+            let wt = p.get(&format!("{name}.weight"), &[oc, ic, k, k])?;
+            let b = if bias {
+                Some(p.get(&format!("{name}.bias"), &[oc])?)
+            } else {
+                None
+            };
+            Conv::new(
+                &gpu,
+                st,
+                &wt,
+                b.as_deref(),
+                oc as u32,
+                ic as u32,
+                k as u32,
+                stride,
+                1,
+            )
+        };
+        let scalar = |name: String| -> Result<f32> { Ok(p.get(&name, &[1])?[0]) };
+        let blocks = |prefix: &str, n: u32| -> Result<Vec<Block>> {
+            (0..n)
+                .map(|i| {
+                    let b = format!("{prefix}.{i}");
+                    Ok(Block {
+                        conv1: conv(&format!("{b}.conv1"), w, w, 3, 1, false)?,
+                        conv2: conv(&format!("{b}.conv2"), w, w, 3, 1, false)?,
+                        bias1a: scalar(format!("{b}.bias1a"))?,
+                        bias1b: scalar(format!("{b}.bias1b"))?,
+                        bias2a: scalar(format!("{b}.bias2a"))?,
+                        scale: scalar(format!("{b}.scale"))?,
+                        bias2b: scalar(format!("{b}.bias2b"))?,
+                    })
+                })
+                .collect()
+        };
+        let in_conv = if config.width != config.in_channels {
+            Some(conv("in_conv", w, config.in_channels as usize, 3, 1, true)?)
+        } else {
+            None
+        };
+        Ok(Network {
+            in_conv,
+            trunk: blocks("trunk", config.trunk_blocks)?,
+            down: (0..config.levels - 1)
+                .map(|k| conv(&format!("down.{k}"), w, w, 4, 2, true))
+                .collect::<Result<_>>()?,
+            levels: (0..config.levels)
+                .map(|k| blocks(&format!("levels.{k}"), config.level_blocks))
+                .collect::<Result<_>>()?,
+            tail: blocks("tail", config.tail_blocks)?,
+            out_conv: conv("out_conv", config.out_channels as usize, w, 3, 1, true)?,
+            config,
+            kernels,
+        })
+    }
+
+    /// Allocates the intermediate tensors for an `h × w` input.
+    pub fn buffers(&self, h: u32, w: u32) -> Result<NetBuffers> {
+        let gpu = &self.kernels.gpu;
+        let st = self.kernels.storage;
+        let c = self.config.width;
+        let mut levels = Vec::new();
+        let (mut lh, mut lw) = (h, w);
+        for k in 0..self.config.levels {
+            if k > 0 {
+                (lh, lw) = self.down[k as usize - 1].out_size(lh, lw);
+            }
+            if lh == 0 || lw == 0 {
+                return Err(Error::Other(format!(
+                    "{w}x{h} is too small for {} pyramid levels",
+                    self.config.levels
+                )));
+            }
+            let t = |i: u32| Tensor::new(gpu, &format!("net level {k}.{i}"), c, lh, lw, st);
+            levels.push([t(0)?, t(1)?, t(2)?]);
+        }
+        Ok(NetBuffers {
+            levels,
+            out: Tensor::new(gpu, "net out", self.config.out_channels, h, w, st)?,
+            h,
+            w,
+        })
+    }
+
+    /// Runs `blocks` from `input`, alternating outputs between `a` and `b` with `t` as the
+    /// temporary; returns the tensor that holds the result.
+    fn blocks<'a>(
+        &self,
+        cmd: vk::CommandBuffer,
+        blocks: &[Block],
+        input: &'a Tensor,
+        mut a: &'a Tensor,
+        mut b: &'a Tensor,
+        t: &'a Tensor,
+    ) -> Result<&'a Tensor> {
+        let k = &self.kernels;
+        let mut x = input;
+        for blk in blocks {
+            if std::ptr::eq(x, a) {
+                std::mem::swap(&mut a, &mut b);
+            }
+            let ep1 = Epilogue {
+                in_bias: blk.bias1a,
+                out_bias: blk.bias1b,
+                relu: true,
+                ..Default::default()
+            };
+            k.conv(cmd, &blk.conv1, x, t, ep1)?;
+            let ep2 = Epilogue {
+                in_bias: blk.bias2a,
+                out_bias: blk.bias2b,
+                scale: blk.scale,
+                relu: true,
+                residual: Some(x),
+            };
+            k.conv(cmd, &blk.conv2, t, a, ep2)?;
+            x = a;
+        }
+        Ok(x)
+    }
+
+    /// Records the network on `input` (in_channels × h × w) into `bufs.out`. With a timer, one
+    /// span per stage: input conv, trunk, pyramid (downsampling), level k, upsample, tail, output.
+    pub fn record(
+        &self,
+        cmd: vk::CommandBuffer,
+        bufs: &NetBuffers,
+        input: &Tensor,
+        mut timer: Option<&mut Timer>,
+    ) -> Result<()> {
+        if (input.c, input.h, input.w) != (self.config.in_channels, bufs.h, bufs.w) {
+            return Err(Error::Other(format!(
+                "network input {}x{}x{}, expected {}x{}x{}",
+                input.c, input.h, input.w, self.config.in_channels, bufs.h, bufs.w
+            )));
+        }
+        macro_rules! timed {
+            ($label:expr, $body:expr) => {{
+                let s = match timer.as_deref_mut() {
+                    Some(t) => Some(t.begin(cmd, $label)?),
+                    None => None,
+                };
+                let r = $body;
+                if let (Some(s), Some(t)) = (s, timer.as_deref()) {
+                    t.end(cmd, s);
+                }
+                r
+            }};
+        }
+        let l0 = &bufs.levels[0];
+        let x = match &self.in_conv {
+            Some(c) => timed!("net: input conv", {
+                self.kernels
+                    .conv(cmd, c, input, &l0[0], Epilogue::default())?;
+                &l0[0]
+            }),
+            None => input,
+        };
+        let trunk = timed!(
+            "net: trunk",
+            self.blocks(cmd, &self.trunk, x, &l0[1], &l0[0], &l0[2])?
+        );
+        // The raw pyramid first: each level's ResNet may then reuse its input buffer.
+        let mut pyramid = vec![trunk];
+        timed!("net: pyramid", {
+            for (k, d) in self.down.iter().enumerate() {
+                let out = &bufs.levels[k + 1][0];
+                self.kernels
+                    .conv(cmd, d, pyramid[k], out, Epilogue::default())?;
+                pyramid.push(out);
+            }
+        });
+        let mut results = Vec::new();
+        for (k, (blocks, lv)) in self.levels.iter().zip(&bufs.levels).enumerate() {
+            let input = pyramid[k];
+            let (a, b) = if std::ptr::eq(input, &lv[1]) {
+                (&lv[0], &lv[1])
+            } else {
+                (&lv[1], &lv[0])
+            };
+            results.push(timed!(&format!("net: level {k}"), {
+                self.blocks(cmd, blocks, input, a, b, &lv[2])?
+            }));
+        }
+        let sum = results[0];
+        timed!("net: upsample", {
+            for r in &results[1..] {
+                self.kernels.upsample_add(cmd, r, sum)?;
+            }
+        });
+        let other = if std::ptr::eq(sum, &l0[0]) {
+            &l0[1]
+        } else {
+            &l0[0]
+        };
+        let tail = timed!(
+            "net: tail",
+            self.blocks(cmd, &self.tail, sum, other, sum, &l0[2])?
+        );
+        timed!("net: output conv", {
+            self.kernels
+                .conv(cmd, &self.out_conv, tail, &bufs.out, Epilogue::default())?
+        });
+        Ok(())
+    }
+
+    /// Runs the network on planar CHW input and returns planar CHW output (tests, tools).
+    pub fn run(&self, input: &[f32], h: u32, w: u32) -> Result<Vec<f32>> {
+        let gpu = &self.kernels.gpu;
+        let x = Tensor::new(
+            gpu,
+            "net input",
+            self.config.in_channels,
+            h,
+            w,
+            self.kernels.storage,
+        )?;
+        x.upload_chw(input)?;
+        let bufs = self.buffers(h, w)?;
+        let mut res = Ok(());
+        gpu.submit(|cmd| res = self.record(cmd, &bufs, &x, None))?;
+        res?;
+        bufs.out.download_chw()
+    }
+
+    /// Multiply-adds × 2 of one inference at h × w.
+    pub fn flops(&self, h: u32, w: u32) -> f64 {
+        let mut total = 0.0;
+        if let Some(c) = &self.in_conv {
+            total += c.flops(h, w);
+        }
+        let block = |b: &[Block], h, w| -> f64 {
+            b.iter()
+                .map(|b| b.conv1.flops(h, w) + b.conv2.flops(h, w))
+                .sum()
+        };
+        total += block(&self.trunk, h, w);
+        let (mut lh, mut lw) = (h, w);
+        for (k, lv) in self.levels.iter().enumerate() {
+            if k > 0 {
+                let d = &self.down[k - 1];
+                total += d.flops(lh, lw);
+                (lh, lw) = d.out_size(lh, lw);
+            }
+            total += block(lv, lh, lw);
+        }
+        total + block(&self.tail, h, w) + self.out_conv.flops(h, w)
+    }
+}

@@ -1,0 +1,203 @@
+//! The network's kernels (§5.1) against CPU references, and the whole network against the
+//! PyTorch module `tools/train/model.py` (golden files in tests/golden, written by
+//! `tools/train/golden.py`).
+
+mod common;
+
+use relit_engine::gpu::{self, vk};
+use relit_engine::net::{
+    conv_reference, select_backend, upsample_add_reference, Backend, Conv, Epilogue, NetKernels,
+    Network, Storage, Tensor,
+};
+use relit_engine::scene::synth::Rng;
+
+fn random(rng: &mut Rng, n: usize, lo: f32, hi: f32) -> Vec<f32> {
+    (0..n).map(|_| rng.range(lo, hi)).collect()
+}
+
+fn max_err(a: &[f32], b: &[f32]) -> (f32, f32) {
+    let scale = b.iter().fold(0f32, |m, x| m.max(x.abs()));
+    let e = a.iter().zip(b).fold(0f32, |m, (x, y)| m.max((x - y).abs()));
+    (e, scale)
+}
+
+/// (ic, oc, h, w, k, stride): the fixup 3×3 conv with every epilogue option, and the 4×4
+/// stride-2 downsampling conv at odd sizes; channel counts that are not multiples of 4 or 16.
+#[test]
+fn conv_kernels_match_cpu() {
+    let gpu = common::gpu();
+    let mut rng = Rng::new(5);
+    for storage in [Storage::F32, Storage::F16] {
+        let kern = NetKernels::with_backend(&gpu, storage, Backend::Portable).unwrap();
+        for &(ic, oc, h, w, k, stride) in &[
+            (6u32, 20u32, 7u32, 19u32, 3u32, 1u32),
+            (18, 18, 9, 11, 4, 2),
+            (12, 6, 5, 17, 3, 1),
+        ] {
+            let x = random(&mut rng, (ic * h * w) as usize, -1.0, 1.0);
+            let wt = random(&mut rng, (oc * ic * k * k) as usize, -0.3, 0.3);
+            let bias = random(&mut rng, oc as usize, -0.2, 0.2);
+            let layer = Conv::new(&gpu, storage, &wt, Some(&bias), oc, ic, k, stride, 1).unwrap();
+            let (oh, ow) = layer.out_size(h, w);
+            let res_ok = oc == ic && stride == 1;
+            let resid = random(&mut rng, (oc * oh * ow) as usize, -1.0, 1.0);
+            let xt = Tensor::new(&gpu, "x", ic, h, w, storage).unwrap();
+            xt.upload_chw(&x).unwrap();
+            let rt = Tensor::new(&gpu, "r", oc, oh, ow, storage).unwrap();
+            let yt = Tensor::new(&gpu, "y", oc, oh, ow, storage).unwrap();
+            if res_ok {
+                rt.upload_chw(&resid).unwrap();
+            }
+            let ep = Epilogue {
+                in_bias: 0.1,
+                out_bias: -0.05,
+                scale: 0.8,
+                relu: true,
+                residual: res_ok.then_some(&rt),
+            };
+            let mut r = Ok(());
+            gpu.submit(|cmd| r = kern.conv(cmd, &layer, &xt, &yt, ep))
+                .unwrap();
+            r.unwrap();
+            let got = yt.download_chw().unwrap();
+            // The reference sees what the device sees: inputs rounded to the storage type.
+            let q = |v: &[f32]| -> Vec<f32> {
+                match storage {
+                    Storage::F32 => v.to_vec(),
+                    Storage::F16 => v.iter().map(|&x| half::f16::from_f32(x).to_f32()).collect(),
+                }
+            };
+            let want = conv_reference(
+                &q(&x),
+                (ic, h, w),
+                &q(&wt),
+                &bias,
+                oc,
+                (k, stride, 1),
+                0.1,
+                -0.05,
+                0.8,
+                true,
+                res_ok.then_some(&q(&resid)[..]),
+            );
+            let (e, s) = max_err(&got, &want);
+            // fp32: accumulation-order error only; fp16: the output's rounding (2^-11 relative).
+            let tol = match storage {
+                Storage::F32 => 1e-5 * s.max(1.0),
+                Storage::F16 => 1e-3 * s.max(1.0),
+            };
+            assert!(
+                e <= tol,
+                "{storage:?} conv {ic}->{oc} k{k} s{stride}: max error {e} (scale {s})"
+            );
+        }
+    }
+    common::assert_no_validation_errors(&gpu);
+}
+
+#[test]
+fn upsample_add_matches_cpu() {
+    let gpu = common::gpu();
+    let mut rng = Rng::new(9);
+    let kern = NetKernels::with_backend(&gpu, Storage::F32, Backend::Portable).unwrap();
+    let (c, sh, sw, dh, dw) = (7u32, 3u32, 5u32, 24u32, 40u32);
+    let src = random(&mut rng, (c * sh * sw) as usize, -1.0, 1.0);
+    let dst = random(&mut rng, (c * dh * dw) as usize, -1.0, 1.0);
+    let st = Tensor::new(&gpu, "s", c, sh, sw, Storage::F32).unwrap();
+    let dt = Tensor::new(&gpu, "d", c, dh, dw, Storage::F32).unwrap();
+    st.upload_chw(&src).unwrap();
+    dt.upload_chw(&dst).unwrap();
+    let mut r = Ok(());
+    gpu.submit(|cmd| r = kern.upsample_add(cmd, &st, &dt))
+        .unwrap();
+    r.unwrap();
+    let want = upsample_add_reference(&src, (c, sh, sw), &dst, (dh, dw));
+    let (e, _) = max_err(&dt.download_chw().unwrap(), &want);
+    assert!(e < 1e-5, "max error {e}");
+    common::assert_no_validation_errors(&gpu);
+}
+
+fn golden(name: &str) -> (std::path::PathBuf, Vec<f32>, Vec<f32>, Vec<usize>) {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
+    let io = std::fs::read(dir.join(format!("{name}.io.safetensors"))).unwrap();
+    let st = safetensors::SafeTensors::deserialize(&io).unwrap();
+    let get = |k: &str| -> (Vec<f32>, Vec<usize>) {
+        let t = st.tensor(k).unwrap();
+        (bytemuck::pod_collect_to_vec(t.data()), t.shape().to_vec())
+    };
+    let (x, xs) = get("input");
+    let (y, _) = get("output");
+    (dir.join(format!("{name}.safetensors")), x, y, xs)
+}
+
+/// The engine's network against PyTorch (float64) with random weights on a random input.
+/// Tolerances, relative to the output's largest magnitude: fp32 storage 1e-4 (accumulation
+/// order over ~40 layers); fp16 storage 5e-3 (activations rounded to 11 bits at every layer).
+#[test]
+fn network_matches_pytorch_golden() {
+    let gpu = common::gpu();
+    for name in ["net_w12", "net_w66"] {
+        let (weights, x, y, shape) = golden(name);
+        let (h, w) = (shape[1] as u32, shape[2] as u32);
+        for (storage, tol) in [(Storage::F32, 1e-4f32), (Storage::F16, 5e-3)] {
+            let net = Network::load(&gpu, &weights, storage).unwrap();
+            let got = net.run(&x, h, w).unwrap();
+            let (e, s) = max_err(&got, &y);
+            eprintln!("{name} {storage:?}: max error {e} (output scale {s})");
+            assert!(e <= tol * s, "{name} {storage:?}: max error {e}, scale {s}");
+        }
+    }
+    common::assert_no_validation_errors(&gpu);
+}
+
+#[test]
+fn network_weights_errors_name_the_problem() {
+    let gpu = common::gpu();
+    let dir = common::tempdir("netweights");
+    let bad = dir.join("bad.safetensors");
+    std::fs::write(&bad, b"not a safetensors file").unwrap();
+    let e = Network::load(&gpu, &bad, Storage::F32)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("bad.safetensors") && e.contains("safetensors"),
+        "{e}"
+    );
+    // A valid file without the configuration metadata.
+    let (_, x, _, _) = golden("net_w12");
+    let data = bytemuck::cast_slice::<f32, u8>(&x[..4]).to_vec();
+    let view =
+        safetensors::tensor::TensorView::new(safetensors::Dtype::F32, vec![4], &data).unwrap();
+    let nometa = dir.join("nometa.safetensors");
+    safetensors::serialize_to_file([("a", view)], None, &nometa).unwrap();
+    let e = Network::load(&gpu, &nometa, Storage::F32)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("relit.net"), "{e}");
+}
+
+#[test]
+fn conv_coop_matrix_module_is_built_and_selected_only_when_it_fits() {
+    let gpu = common::gpu();
+    // OpCapability CooperativeMatrixKHR (6022) in the module, and the portable twin's layout.
+    let words = gpu::spirv("net/conv_cm.comp").unwrap();
+    assert!(words
+        .windows(2)
+        .any(|w| w[0] == (2 << 16 | 17) && w[1] == 6022));
+    let (cm, portable) = (
+        gpu::reflect("net/conv_cm.comp").unwrap(),
+        gpu::reflect("net/conv.comp").unwrap(),
+    );
+    assert_eq!(cm.sets, portable.sets);
+    assert_eq!(cm.push_size, portable.push_size);
+    // fp32 storage never takes the coop-matrix path; fp16 takes what select_backend says.
+    assert!(NetKernels::with_backend(&gpu, Storage::F32, Backend::CoopMatrix).is_err());
+    let k = NetKernels::new(&gpu, Storage::F16).unwrap();
+    assert_eq!(k.backend, select_backend(&gpu.caps));
+    if gpu.caps.coop_matrix.is_empty() {
+        assert_eq!(k.backend, Backend::Portable);
+    }
+    let _ = vk::ComponentTypeKHR::FLOAT16;
+}

@@ -1,0 +1,56 @@
+"""Writes the golden files of the engine's network test (tests/golden/): a RelightNet with random
+weights (every parameter random, including the fixup scalars and the zero-initialized second
+convs) and a random input, with the PyTorch output computed in float64.
+
+  python3 tools/train/golden.py tests/golden
+"""
+import sys
+from pathlib import Path
+
+import torch
+from safetensors.torch import save_file
+
+import model as M
+
+CASES = {
+    # Width not a multiple of 4 or 16 and != 66: exercises the input conv and channel padding.
+    "net_w12": dict(cfg=dict(width=12), size=(24, 40), dtype=torch.float32),
+    # The paper's width with fewer blocks (keeps the file at ~1 MB), weights stored as fp16.
+    "net_w66": dict(cfg=dict(width=66, trunk_blocks=1, levels=3, level_blocks=1, tail_blocks=1),
+                    size=(20, 28), dtype=torch.float16),
+}
+
+
+def randomize(net, gen):
+    with torch.no_grad():
+        for name, p in net.named_parameters():
+            if p.dim() == 4:
+                fan_in = p.shape[1] * p.shape[2] * p.shape[3]
+                p.copy_(torch.randn(p.shape, generator=gen) * (1.0 / fan_in) ** 0.5)
+            elif name.endswith("scale"):
+                p.copy_(0.5 + torch.rand(p.shape, generator=gen))
+            else:
+                p.copy_(torch.randn(p.shape, generator=gen) * 0.1)
+
+
+def main(out):
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, case in CASES.items():
+        gen = torch.Generator().manual_seed(2021)
+        net = M.RelightNet(**case["cfg"])
+        randomize(net, gen)
+        # What the file holds is what the engine sees: round the weights to the file's dtype.
+        M.save(net, out / f"{name}.safetensors", dtype=case["dtype"])
+        net = M.load(out / f"{name}.safetensors").double()
+        h, w = case["size"]
+        x = torch.rand((1, net.config["in_channels"], h, w), generator=gen, dtype=torch.float64)
+        with torch.no_grad():
+            y = net(x)
+        save_file({"input": x[0].float().contiguous(), "output": y[0].float().contiguous()},
+                  out / f"{name}.io.safetensors")
+        print(name, tuple(y.shape), float(y.abs().max()))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1] if len(sys.argv) > 1 else "tests/golden")

@@ -1,0 +1,113 @@
+"""The network of §5.1 (Philip et al. 2021) as a PyTorch module: the reference the engine's
+compute kernels are tested against (tests/golden/net_*) and the model the trainer learns.
+
+Structure (W = width):
+  input (66 ch)  -> [in_conv 3x3 -> W, only when W != 66]
+  trunk          : 4 fixup blocks
+  pyramid        : p0 = trunk out; p_k = down_k(p_{k-1}), 4x4 conv stride 2 pad 1 (+bias), k=1..4
+  levels         : each p_k through its own 4-block fixup ResNet
+  sum            : level 0 + bilinear upsampling (align_corners=False) of levels 1..4 to full size
+  tail           : 2 fixup blocks
+  out_conv       : 3x3 conv W -> 6 (+bias): diffuse RGB, view-dependent RGB, tonemapped space
+
+Choices where the paper is silent (documented in the README): no activation after the
+downsampling convs, the input conv is linear, the output conv is linear with a bias.
+
+Weights travel as safetensors; the configuration sits in the file's metadata under "relit.net"
+as JSON (see save()). Parameter names are the state_dict names of this module.
+"""
+import json
+import math
+
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+DEFAULT_CONFIG = dict(in_channels=66, width=66, trunk_blocks=4, levels=5, level_blocks=4,
+                      tail_blocks=2, out_channels=6)
+
+
+class FixupBlock(nn.Module):
+    """Fixup residual block (Zhang et al. 2019): scalar biases before each conv and before the
+    first activation, a scalar multiplier and bias after the second conv, which starts at zero."""
+
+    def __init__(self, width, total_blocks):
+        super().__init__()
+        self.bias1a = nn.Parameter(torch.zeros(1))
+        self.conv1 = nn.Conv2d(width, width, 3, 1, 1, bias=False)
+        self.bias1b = nn.Parameter(torch.zeros(1))
+        self.bias2a = nn.Parameter(torch.zeros(1))
+        self.conv2 = nn.Conv2d(width, width, 3, 1, 1, bias=False)
+        self.scale = nn.Parameter(torch.ones(1))
+        self.bias2b = nn.Parameter(torch.zeros(1))
+        # Fixup initialization: He init scaled by L^(-1/(2m-2)) with m = 2 layers per branch.
+        fan_in = width * 9
+        nn.init.normal_(self.conv1.weight, 0.0, math.sqrt(2.0 / fan_in) * total_blocks ** -0.5)
+        nn.init.zeros_(self.conv2.weight)
+
+    def forward(self, x):
+        h = F.relu(self.conv1(x + self.bias1a) + self.bias1b)
+        h = self.conv2(h + self.bias2a) * self.scale + self.bias2b
+        return F.relu(h + x)
+
+
+def resnet(width, blocks, total):
+    return nn.Sequential(*[FixupBlock(width, total) for _ in range(blocks)])
+
+
+class RelightNet(nn.Module):
+    def __init__(self, **cfg):
+        super().__init__()
+        c = dict(DEFAULT_CONFIG)
+        c.update(cfg)
+        self.config = c
+        w = c["width"]
+        total = c["trunk_blocks"] + c["levels"] * c["level_blocks"] + c["tail_blocks"]
+        self.in_conv = nn.Conv2d(c["in_channels"], w, 3, 1, 1) if w != c["in_channels"] else None
+        self.trunk = resnet(w, c["trunk_blocks"], total)
+        self.down = nn.ModuleList([nn.Conv2d(w, w, 4, 2, 1) for _ in range(c["levels"] - 1)])
+        self.levels = nn.ModuleList([resnet(w, c["level_blocks"], total) for _ in range(c["levels"])])
+        self.tail = resnet(w, c["tail_blocks"], total)
+        self.out_conv = nn.Conv2d(w, c["out_channels"], 3, 1, 1)
+
+    def forward(self, x):
+        h = self.in_conv(x) if self.in_conv is not None else x
+        h = self.trunk(h)
+        size = h.shape[-2:]
+        pyramid = [h]
+        for d in self.down:
+            pyramid.append(d(pyramid[-1]))
+        acc = self.levels[0](pyramid[0])
+        for k in range(1, len(pyramid)):
+            lk = self.levels[k](pyramid[k])
+            acc = acc + F.interpolate(lk, size=size, mode="bilinear", align_corners=False)
+        return self.out_conv(self.tail(acc))
+
+    def flops(self, h, w):
+        """Multiply-adds x 2 of the convolutions at an h x w input."""
+        counts = []
+
+        def hook(mod, inp, out):
+            counts.append(2 * out.numel() * mod.in_channels * mod.kernel_size[0] * mod.kernel_size[1])
+
+        hs = [m.register_forward_hook(hook) for m in self.modules() if isinstance(m, nn.Conv2d)]
+        with torch.no_grad():
+            self(torch.zeros(1, self.config["in_channels"], h, w))
+        for x in hs:
+            x.remove()
+        return sum(counts)
+
+
+def save(model, path, dtype=torch.float32):
+    from safetensors.torch import save_file
+    tensors = {k: v.detach().to(dtype).contiguous() for k, v in model.state_dict().items()}
+    save_file(tensors, path, metadata={"relit.net": json.dumps(model.config, sort_keys=True)})
+
+
+def load(path):
+    from safetensors import safe_open
+    with safe_open(path, framework="pt") as f:
+        cfg = json.loads(f.metadata()["relit.net"])
+        model = RelightNet(**cfg)
+        model.load_state_dict({k: f.get_tensor(k).float() for k in f.keys()})
+    return model
