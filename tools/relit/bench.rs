@@ -46,6 +46,25 @@ pub enum BenchCmd {
         #[arg(long, value_enum, default_value = "final")]
         quality: crate::Quality,
     },
+    /// The network alone (§5.1, random weights): ms per inference, GFLOP/s, per-stage times.
+    /// `tools/train/bench_torch.py` times the same network with PyTorch on the CPU.
+    Net {
+        /// Feature width W (the paper: 66).
+        #[arg(long, default_value_t = 66)]
+        width: u32,
+        /// Input size WxH.
+        #[arg(long, default_value = "256x192", value_parser = crate::parse_res)]
+        res: (u32, u32),
+        /// Element type of activations and weights in memory.
+        #[arg(long, value_enum, default_value = "f16")]
+        storage: crate::StorageArg,
+        /// Timed inferences after one warm-up (the median is reported).
+        #[arg(long, default_value_t = 3)]
+        repeats: u32,
+        /// Also write the figures as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
 }
 
 pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
@@ -62,6 +81,20 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             quality,
         } => bake_bench(scene, *views, *quality, opts),
         BenchCmd::Bc6h { cache, maps } => bc6h_bench(cache, *maps, opts),
+        BenchCmd::Net {
+            width,
+            res,
+            storage,
+            repeats,
+            json,
+        } => net_bench(
+            *width,
+            *res,
+            (*storage).into(),
+            *repeats,
+            json.as_ref(),
+            opts,
+        ),
     }
 }
 
@@ -394,6 +427,78 @@ fn bc6h_bench(cache: &std::path::Path, maps: usize, opts: &GpuOptions) -> Result
                 psnr / n
             );
         }
+    }
+    Ok(())
+}
+
+fn net_bench(
+    width: u32,
+    (w, h): (u32, u32),
+    storage: relit_engine::net::Storage,
+    repeats: u32,
+    json: Option<&PathBuf>,
+    opts: &GpuOptions,
+) -> Result<()> {
+    use relit_engine::net::{NetConfig, NetKernels, Network, RandomParams, Tensor};
+    let gpu = crate::open_gpu(opts)?;
+    let cfg = NetConfig::paper(width);
+    let net = Network::from_params(
+        NetKernels::new(&gpu, storage)?,
+        cfg.clone(),
+        &RandomParams(1),
+    )?;
+    let bufs = net.buffers(h, w)?;
+    let x = Tensor::new(&gpu, "input", cfg.in_channels, h, w, storage)?;
+    let mut rng = synth::Rng::new(3);
+    let input: Vec<f32> = (0..cfg.in_channels * h * w).map(|_| rng.f32()).collect();
+    x.upload_chw(&input)?;
+    let flops = net.flops(h, w);
+    println!("device: {}", gpu.caps.name);
+    println!(
+        "network: width {width}, {w}x{h}, {storage:?} storage, {:?} kernels, {:.2} GFLOP per inference",
+        net.kernels.backend,
+        flops * 1e-9
+    );
+    // Warm-up: lavapipe compiles each shader at its first dispatch.
+    let t0 = Instant::now();
+    gpu.submit(|cmd| net.record(cmd, &bufs, &x, None))??;
+    println!(
+        "first run (includes shader compilation): {:.2} s",
+        t0.elapsed().as_secs_f64()
+    );
+    let mut totals = Vec::new();
+    let mut stages: Vec<(String, Vec<f64>)> = Vec::new();
+    for _ in 0..repeats.max(1) {
+        let mut timer = Timer::new(&gpu, 64)?;
+        gpu.submit(|cmd| net.record(cmd, &bufs, &x, Some(&mut timer)))??;
+        let spans = timer.read()?;
+        totals.push(spans.iter().map(|s| s.1).sum::<f64>());
+        for (label, ms) in spans {
+            match stages.iter_mut().find(|s| s.0 == label) {
+                Some(s) => s.1.push(ms),
+                None => stages.push((label, vec![ms])),
+            }
+        }
+    }
+    let total = median(totals);
+    println!("{:<22} {:>10}", "stage", "ms");
+    for (label, v) in &stages {
+        println!("{:<22} {:>10.1}", label, median(v.clone()));
+    }
+    println!(
+        "total: {:.1} ms per inference, {:.2} GFLOP/s",
+        total,
+        flops * 1e-9 / (total * 1e-3)
+    );
+    if let Some(path) = json {
+        let doc = serde_json::json!({
+            "device": gpu.caps.name,
+            "width": width, "res": [w, h], "storage": format!("{storage:?}"),
+            "backend": format!("{:?}", net.kernels.backend),
+            "gflop": flops * 1e-9, "ms": total, "gflops": flops * 1e-9 / (total * 1e-3),
+            "stages_ms": stages.iter().map(|(l, v)| (l.clone(), median(v.clone()))).collect::<std::collections::BTreeMap<_, _>>(),
+        });
+        relit_engine::scene::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     }
     Ok(())
 }

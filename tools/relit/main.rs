@@ -67,6 +67,22 @@ enum Cmd {
     },
 }
 
+/// Element type of the network's tensors in device memory.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum StorageArg {
+    F16,
+    F32,
+}
+
+impl From<StorageArg> for relit_engine::net::Storage {
+    fn from(s: StorageArg) -> Self {
+        match s {
+            StorageArg::F16 => relit_engine::net::Storage::F16,
+            StorageArg::F32 => relit_engine::net::Storage::F32,
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum Quality {
     Preview,

@@ -11,7 +11,7 @@ pub use conv::{
     Tensor, OCB,
 };
 pub use gemm::Gemm;
-pub use model::{NetBuffers, NetConfig, Network, Params, SafetensorsParams};
+pub use model::{NetBuffers, NetConfig, Network, Params, RandomParams, SafetensorsParams};
 
 use crate::gpu::{vk, Caps};
 

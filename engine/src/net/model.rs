@@ -417,3 +417,23 @@ impl Network {
         total + block(&self.tail, h, w) + self.out_conv.flops(h, w)
     }
 }
+
+/// Random parameters with fan-in scaled weights (benchmarks: the values only need to stay
+/// finite and away from denormals). Scalars: biases 0, scales 1.
+pub struct RandomParams(pub u64);
+
+impl Params for RandomParams {
+    fn get(&self, name: &str, shape: &[usize]) -> Result<Vec<f32>> {
+        let n: usize = shape.iter().product();
+        if shape.len() != 4 {
+            let v = if name.ends_with("scale") { 1.0 } else { 0.0 };
+            return Ok(vec![v; n]);
+        }
+        let seed = name.bytes().fold(self.0 ^ 0xcbf29ce484222325, |h, b| {
+            (h ^ b as u64).wrapping_mul(0x100000001b3)
+        });
+        let mut rng = crate::scene::synth::Rng::new(seed);
+        let a = (3.0 / (shape[1] * shape[2] * shape[3]) as f32).sqrt();
+        Ok((0..n).map(|_| rng.range(-a, a)).collect())
+    }
+}
