@@ -13,6 +13,7 @@
 pub mod bake;
 pub mod cpu;
 pub mod error;
+pub mod frame;
 pub mod gpu;
 pub mod net;
 pub mod raster;

@@ -146,7 +146,7 @@ impl Bc6hTexture {
         }
         // The image extent is the padded one: blocks cover whole 4×4 tiles.
         let (pw, ph) = (width.div_ceil(4) * 4, height.div_ceil(4) * 4);
-        let image = Image::new(
+        let image = Image::new_array(
             gpu,
             "bc6h maps",
             vk::Format::BC6H_UFLOAT_BLOCK,

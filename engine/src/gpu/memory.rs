@@ -369,6 +369,37 @@ impl Image {
         layers: u32,
         usage: vk::ImageUsageFlags,
     ) -> Result<Image> {
+        Image::create(
+            gpu,
+            name,
+            format,
+            (width, height, layers),
+            usage,
+            layers > 1,
+        )
+    }
+
+    /// An image whose view is a 2D array even with one layer (`sampler2DArray` in shaders).
+    pub fn new_array(
+        gpu: &Arc<Gpu>,
+        name: &str,
+        format: vk::Format,
+        width: u32,
+        height: u32,
+        layers: u32,
+        usage: vk::ImageUsageFlags,
+    ) -> Result<Image> {
+        Image::create(gpu, name, format, (width, height, layers), usage, true)
+    }
+
+    fn create(
+        gpu: &Arc<Gpu>,
+        name: &str,
+        format: vk::Format,
+        (width, height, layers): (u32, u32, u32),
+        usage: vk::ImageUsageFlags,
+        array: bool,
+    ) -> Result<Image> {
         let d = &gpu.device;
         let aspect = if format == vk::Format::D32_SFLOAT {
             vk::ImageAspectFlags::DEPTH
@@ -409,7 +440,7 @@ impl Image {
             d.create_image_view(
                 &vk::ImageViewCreateInfo::default()
                     .image(raw)
-                    .view_type(if layers > 1 {
+                    .view_type(if array {
                         vk::ImageViewType::TYPE_2D_ARRAY
                     } else {
                         vk::ImageViewType::TYPE_2D

@@ -403,6 +403,28 @@ impl Pipeline {
 
     /// Binds the pipeline, pushes set 0 and the push constants. Each reflected binding must be
     /// given exactly once, with a resource of the reflected type.
+    /// Whether the shader declares `binding` in set 0.
+    pub fn has_binding(&self, binding: u32) -> bool {
+        self.bindings.contains_key(&binding)
+    }
+
+    /// Binds and dispatches with the subset of `binds` that the shader declares (passes that
+    /// share one binding numbering, like the frame passes).
+    pub fn dispatch_subset(
+        &self,
+        cmd: vk::CommandBuffer,
+        binds: &[(u32, Bind)],
+        push: &[u8],
+        threads: (u32, u32, u32),
+    ) -> Result<()> {
+        let mine: Vec<(u32, Bind)> = binds
+            .iter()
+            .filter(|(b, _)| self.has_binding(*b))
+            .copied()
+            .collect();
+        self.dispatch(cmd, &mine, push, threads)
+    }
+
     pub fn bind(&self, cmd: vk::CommandBuffer, binds: &[(u32, Bind)], push: &[u8]) -> Result<()> {
         for b in self.bindings.keys() {
             if !binds.iter().any(|(i, _)| i == b) {

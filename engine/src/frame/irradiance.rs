@@ -1,0 +1,60 @@
+//! Irradiance composites `E_src`, `E_add`, `E_rem` (§4.3.3): `shaders_glsl/frame/irradiance.comp`.
+
+use glam::Vec3;
+
+use super::maps::sample_bilinear;
+use super::reproject::project_px;
+use super::RefInputs;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Push {
+    pub eye: [f32; 4],
+    pub width: u32,
+    pub height: u32,
+    pub nactive: u32,
+    pub view_w: u32,
+    pub view_h: u32,
+    pub nviews: u32,
+    pub nlights: u32,
+    pub alpha_dim: f32,
+}
+
+pub const SHADER: &str = "frame/irradiance.comp";
+pub const PLANES: usize = 3;
+
+/// CPU reference: 3 planes (E_src, E_add, E_rem) of `width × height` vec4.
+pub fn reference(r: &RefInputs) -> Vec<[f32; 4]> {
+    let npix = (r.width * r.height) as usize;
+    let mut out = vec![[0f32; 4]; PLANES * npix];
+    let (vw, vh) = (r.maps.width, r.maps.height);
+    let nviews = r.data.cameras.len();
+    for p in 0..npix {
+        let Some((x, _)) = r.surface(p) else { continue };
+        let (mut es, mut ea, mut sw) = (Vec3::ZERO, Vec3::ZERO, 0f32);
+        for &j in r.active {
+            let j = j as usize;
+            if r.data.visible_pixel(j, x).is_none() {
+                continue;
+            }
+            let px = project_px(r.data, j, x);
+            let w = 1.0 / r.data.cameras[j].center().distance(r.eye).max(1e-3);
+            es += w * sample_bilinear(&r.maps.esrc[j], vw, vh, px);
+            let mut add = Vec3::ZERO;
+            for (l, &s) in r.intensities.iter().enumerate() {
+                if s != 0.0 {
+                    add += s * sample_bilinear(&r.maps.eadd[l * nviews + j], vw, vh, px);
+                }
+            }
+            ea += w * add;
+            sw += w;
+        }
+        if sw > 0.0 {
+            let (a, b, c) = (es / sw, ea / sw, r.alpha_dim * es / sw);
+            out[p] = [a.x, a.y, a.z, 1.0];
+            out[npix + p] = [b.x, b.y, b.z, 1.0];
+            out[2 * npix + p] = [c.x, c.y, c.z, 1.0];
+        }
+    }
+    out
+}

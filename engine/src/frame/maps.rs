@@ -1,0 +1,145 @@
+//! The per-view maps the frame samples (§4.1–4.2): input images I, source mirrors M_src, source
+//! irradiance E_src and added irradiance E_add per light, each kind one 2D texture array (one
+//! layer per view; E_add layer = light × views + view). Stored BC6H-compressed by default, or
+//! uncompressed for comparison and for the reference tests.
+
+use std::sync::Arc;
+
+use half::f16;
+
+use crate::bake::storage::{encode_bc6h, Bc6hQuality, Bc6hTexture};
+use crate::error::{Error, Result};
+use crate::gpu::{vk, Gpu, Image};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MapFormat {
+    /// `VK_FORMAT_BC6H_UFLOAT_BLOCK` (1 byte per texel).
+    Bc6h,
+    /// RGBA16F (8 bytes per texel).
+    Rgba16f,
+    /// RGBA32F: exact, for the reference tests.
+    Rgba32f,
+}
+
+/// Host copies of the maps, layer-major (what the textures hold before compression).
+#[derive(Clone, Default)]
+pub struct HostMaps {
+    pub width: u32,
+    pub height: u32,
+    pub img: Vec<Vec<[f32; 4]>>,
+    pub msrc: Vec<Vec<[f32; 4]>>,
+    pub esrc: Vec<Vec<[f32; 4]>>,
+    /// Layer `light * views + view`.
+    pub eadd: Vec<Vec<[f32; 4]>>,
+}
+
+pub struct ViewMaps {
+    pub img: Image,
+    pub msrc: Image,
+    pub esrc: Image,
+    pub eadd: Image,
+    pub format: MapFormat,
+}
+
+/// Uploads `layers` (each width × height) as a sampled texture array.
+pub fn upload_layers(
+    gpu: &Arc<Gpu>,
+    name: &str,
+    width: u32,
+    height: u32,
+    layers: &[Vec<[f32; 4]>],
+    format: MapFormat,
+) -> Result<Image> {
+    if layers.is_empty() {
+        return Err(Error::Other(format!("{name}: no layers")));
+    }
+    if let Some(l) = layers.iter().find(|l| l.len() != (width * height) as usize) {
+        return Err(Error::Other(format!(
+            "{name}: a layer has {} texels, expected {width}x{height}",
+            l.len()
+        )));
+    }
+    let sampled = vk::ImageUsageFlags::SAMPLED;
+    let n = layers.len() as u32;
+    match format {
+        MapFormat::Bc6h => {
+            let blocks: Vec<Vec<u8>> = layers
+                .iter()
+                .map(|l| encode_bc6h(width, height, l, Bc6hQuality::Basic))
+                .collect();
+            Ok(Bc6hTexture::upload(gpu, width, height, &blocks)?.image)
+        }
+        MapFormat::Rgba16f => {
+            let img = Image::new_array(
+                gpu,
+                name,
+                vk::Format::R16G16B16A16_SFLOAT,
+                width,
+                height,
+                n,
+                sampled,
+            )?;
+            let data: Vec<f16> = layers
+                .iter()
+                .flatten()
+                .flat_map(|p| p.map(|v| f16::from_f32(if v.is_finite() { v } else { 0.0 })))
+                .collect();
+            img.upload(
+                bytemuck::cast_slice(&data),
+                vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+            )?;
+            Ok(img)
+        }
+        MapFormat::Rgba32f => {
+            let img = Image::new_array(
+                gpu,
+                name,
+                vk::Format::R32G32B32A32_SFLOAT,
+                width,
+                height,
+                n,
+                sampled,
+            )?;
+            let data: Vec<[f32; 4]> = layers.iter().flatten().copied().collect();
+            img.upload(
+                bytemuck::cast_slice(&data),
+                vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+            )?;
+            Ok(img)
+        }
+    }
+}
+
+impl ViewMaps {
+    pub fn upload(gpu: &Arc<Gpu>, m: &HostMaps, format: MapFormat) -> Result<ViewMaps> {
+        let (w, h) = (m.width, m.height);
+        // A scene without added lights still binds a (black) E_add array.
+        let black = vec![vec![[0f32; 4]; (w * h) as usize]];
+        let eadd = if m.eadd.is_empty() { &black } else { &m.eadd };
+        Ok(ViewMaps {
+            img: upload_layers(gpu, "maps: I", w, h, &m.img, format)?,
+            msrc: upload_layers(gpu, "maps: M_src", w, h, &m.msrc, format)?,
+            esrc: upload_layers(gpu, "maps: E_src", w, h, &m.esrc, format)?,
+            eadd: upload_layers(gpu, "maps: E_add", w, h, eadd, format)?,
+            format,
+        })
+    }
+}
+
+/// CPU mirror of `sample_map` in frame.glsl: bilinear, clamp to edge, at continuous pixel
+/// coordinate `px` (texel centres at +½).
+pub fn sample_bilinear(map: &[[f32; 4]], w: u32, h: u32, px: glam::Vec2) -> glam::Vec3 {
+    let u = px.x - 0.5;
+    let v = px.y - 0.5;
+    let (x0, y0) = (u.floor(), v.floor());
+    let (fx, fy) = (u - x0, v - y0);
+    let at = |x: f32, y: f32| {
+        let xi = (x as i64).clamp(0, w as i64 - 1) as usize;
+        let yi = (y as i64).clamp(0, h as i64 - 1) as usize;
+        let p = map[yi * w as usize + xi];
+        glam::Vec3::new(p[0], p[1], p[2])
+    };
+    let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1.0, y0) * fx;
+    let bot = at(x0, y0 + 1.0) * (1.0 - fx) + at(x0 + 1.0, y0 + 1.0) * fx;
+    top * (1.0 - fy) + bot * fy
+}

@@ -1,0 +1,550 @@
+//! The novel-view frame (§4.2.2, §4.3, §4.4, §5): G-buffer of the proxy in the novel camera,
+//! reprojected composites, irradiance composites, target mirror, the 66-channel features, the
+//! network (or the ULR composite) and the output transform. One Rust file and one shader per
+//! pass, each with a CPU reference on small inputs (tests/frame.rs).
+
+pub mod features;
+pub mod irradiance;
+pub mod maps;
+pub mod output;
+pub mod reproject;
+pub mod target_mirror;
+
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::Vec3;
+
+pub use maps::{HostMaps, MapFormat, ViewMaps};
+
+use crate::bake::{run as bakerun, BakeParams, GpuViews, ViewData};
+use crate::error::{Error, Result};
+use crate::gpu::{
+    bytes_of, full_barrier, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, RayScene, Sampler,
+    Timer,
+};
+use crate::net::{Network, Storage, Tensor, INPUT_CHANNELS};
+use crate::raster::{Gbuffer, GbufferPass};
+use crate::scene::{image::load_rgb, Camera, Scene};
+
+/// At most this many input views take part in one frame (`MAX_ACTIVE` in frame.glsl): the views
+/// whose cameras are nearest the novel camera.
+pub const MAX_ACTIVE: usize = 64;
+
+/// The user's lighting: one intensity per added light (the scene's non-original lights, in
+/// scene order) and α_dim (§4.1.4: 0 keeps the original lighting, 1 removes it).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Lighting {
+    pub intensities: Vec<f32>,
+    pub alpha_dim: f32,
+}
+
+impl Lighting {
+    /// The captured lighting: no added light, nothing dimmed.
+    pub fn original(scene: &Scene) -> Lighting {
+        Lighting {
+            intensities: vec![0.0; added_lights(scene).len()],
+            alpha_dim: 0.0,
+        }
+    }
+
+    /// A named preset of the scene.
+    pub fn preset(scene: &Scene, name: &str) -> Result<Lighting> {
+        let p = scene.preset(name).ok_or_else(|| {
+            let names: Vec<_> = scene.presets.iter().map(|p| p.name.as_str()).collect();
+            Error::Other(format!(
+                "no lighting preset \"{name}\" in {} (presets: {})",
+                scene.root.display(),
+                if names.is_empty() {
+                    "none".to_string()
+                } else {
+                    names.join(", ")
+                }
+            ))
+        })?;
+        Ok(Lighting {
+            intensities: added_lights(scene)
+                .iter()
+                .map(|l| p.intensities.get(l.as_str()).copied().unwrap_or(0.0))
+                .collect(),
+            alpha_dim: p.dim,
+        })
+    }
+}
+
+/// Names of the added (non-original) lights, in the order of the E_add layers.
+pub fn added_lights(scene: &Scene) -> Vec<String> {
+    scene
+        .lights
+        .iter()
+        .filter(|l| !l.original)
+        .map(|l| l.name.clone())
+        .collect()
+}
+
+/// The `MAX_ACTIVE` views nearest the novel camera, in view order.
+pub fn select_active(cameras: &[Camera], eye: Vec3) -> Vec<u32> {
+    let mut idx: Vec<u32> = (0..cameras.len() as u32).collect();
+    if idx.len() > MAX_ACTIVE {
+        idx.sort_by(|&a, &b| {
+            let da = cameras[a as usize].center().distance_squared(eye);
+            let db = cameras[b as usize].center().distance_squared(eye);
+            da.total_cmp(&db).then(a.cmp(&b))
+        });
+        idx.truncate(MAX_ACTIVE);
+        idx.sort();
+    }
+    idx
+}
+
+/// What the CPU references read: the views, the host maps, the novel G-buffer and the frame's
+/// parameters.
+pub struct RefInputs<'a> {
+    pub data: &'a ViewData,
+    pub maps: &'a HostMaps,
+    pub gpos: &'a [[f32; 4]],
+    pub gnrm: &'a [[f32; 4]],
+    pub width: u32,
+    pub height: u32,
+    pub eye: Vec3,
+    pub active: &'a [u32],
+    pub intensities: &'a [f32],
+    pub alpha_dim: f32,
+}
+
+impl RefInputs<'_> {
+    /// The surface point at pixel p and its normal facing the novel camera.
+    pub fn surface(&self, p: usize) -> Option<(Vec3, Vec3)> {
+        let g = self.gpos[p];
+        if g[3] <= 0.0 {
+            return None;
+        }
+        let x = Vec3::new(g[0], g[1], g[2]);
+        let mut n = Vec3::from_slice(&self.gnrm[p][..3]);
+        if n.dot(self.eye - x) < 0.0 {
+            n = -n;
+        }
+        Some((x, n))
+    }
+}
+
+/// Everything the frame reads from a baked scene, on the device.
+pub struct FrameScene {
+    pub mesh: RayScene,
+    pub data: ViewData,
+    pub views: GpuViews,
+    pub maps: ViewMaps,
+    pub lights: Vec<String>,
+    pub sampler: Sampler,
+}
+
+impl FrameScene {
+    /// From host data (tests, tools): `mesh` is the proxy the maps were baked on.
+    pub fn from_parts(
+        gpu: &Arc<Gpu>,
+        mesh: &crate::scene::Mesh,
+        cameras: &[Camera],
+        host: &HostMaps,
+        lights: Vec<String>,
+        format: MapFormat,
+    ) -> Result<FrameScene> {
+        let rs = RayScene::new(gpu, &mesh.positions, &mesh.triangles)?;
+        let images: Vec<crate::scene::RgbImage> = host
+            .img
+            .iter()
+            .map(|l| crate::scene::RgbImage {
+                width: host.width,
+                height: host.height,
+                pixels: l.iter().map(|p| [p[0], p[1], p[2]]).collect(),
+            })
+            .collect();
+        let data = ViewData::build(gpu, &rs, cameras, &images)?;
+        let views = GpuViews::upload(gpu, &data)?;
+        Ok(FrameScene {
+            mesh: rs,
+            data,
+            views,
+            maps: ViewMaps::upload(gpu, host, format)?,
+            lights,
+            sampler: Sampler::linear(gpu)?,
+        })
+    }
+
+    /// A baked scene: the maps of the bake cache for `params` (which must be complete).
+    pub fn load(
+        gpu: &Arc<Gpu>,
+        scene: &Scene,
+        params: &BakeParams,
+        format: MapFormat,
+    ) -> Result<FrameScene> {
+        let host = load_host_maps(scene, params)?;
+        let mesh = bakerun::bake_mesh(scene, params);
+        let cams: Vec<Camera> = scene.views.iter().map(|v| v.camera.clone()).collect();
+        FrameScene::from_parts(gpu, &mesh, &cams, &host, added_lights(scene), format)
+    }
+}
+
+/// Reads a scene's images and its complete bake cache into host maps.
+pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
+    let cache = bakerun::cache_dir(scene, params)?;
+    let lights = added_lights(scene);
+    let mut m = HostMaps::default();
+    let load = |path: &Path| -> Result<Vec<[f32; 4]>> {
+        if !path.exists() {
+            return Err(Error::input(
+                path,
+                format!(
+                    "missing from the bake cache: run `relit bake {}` with the same quality first",
+                    scene.root.display()
+                ),
+            ));
+        }
+        bakerun::load_view_map(path)
+    };
+    for v in &scene.views {
+        let img = load_rgb(&v.image)?;
+        m.width = img.width;
+        m.height = img.height;
+        m.img
+            .push(img.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect());
+        m.msrc.push(load(&bakerun::msrc_file(&cache, &v.name))?);
+        m.esrc.push(load(&bakerun::esrc_file(&cache, &v.name))?);
+    }
+    for l in &lights {
+        for v in &scene.views {
+            m.eadd.push(load(&bakerun::eadd_file(&cache, &v.name, l))?);
+        }
+    }
+    Ok(m)
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// The network's output (needs weights).
+    Network,
+    /// The `I_1` composite alone: unstructured-lumigraph-style blending, the baseline.
+    Ulr,
+}
+
+/// Per-resolution buffers of a frame.
+pub struct FrameBuffers {
+    pub width: u32,
+    pub height: u32,
+    pub gbuf: Gbuffer,
+    pub comp: Buffer,
+    pub irr: Buffer,
+    pub mirror: Buffer,
+    pub active: Buffer,
+    pub intensity: Buffer,
+    pub input: Tensor,
+    pub hdr: Buffer,
+    pub ldr: Buffer,
+    net: Option<crate::net::NetBuffers>,
+    dummy_net_out: Tensor,
+}
+
+/// The frame pipelines and, optionally, the network.
+pub struct Renderer {
+    pub gpu: Arc<Gpu>,
+    pub scene: FrameScene,
+    pub net: Option<Network>,
+    pub storage: Storage,
+    gbuffer: GbufferPass,
+    reproject: Pipeline,
+    irradiance: Pipeline,
+    target_mirror: Pipeline,
+    features: Pipeline,
+    output: Pipeline,
+    bufs: Option<FrameBuffers>,
+}
+
+/// Near and far planes of the novel view's G-buffer (m).
+pub const NEAR: f32 = 0.02;
+pub const FAR: f32 = 1000.0;
+
+impl Renderer {
+    pub fn new(
+        gpu: &Arc<Gpu>,
+        scene: FrameScene,
+        net: Option<Network>,
+        storage: Storage,
+    ) -> Result<Renderer> {
+        if let Some(n) = &net {
+            if n.kernels.storage != storage {
+                return Err(Error::Other(
+                    "the network's storage type differs from the renderer's".into(),
+                ));
+            }
+            if n.config.in_channels != INPUT_CHANNELS || n.config.out_channels != 6 {
+                return Err(Error::Other(format!(
+                    "the network takes {} channels and returns {}; the frame needs {} in, 6 out",
+                    n.config.in_channels, n.config.out_channels, INPUT_CHANNELS
+                )));
+            }
+        }
+        let (feat, out) = match storage {
+            Storage::F16 => (features::SHADER_F16, output::SHADER_F16),
+            Storage::F32 => (features::SHADER_F32, output::SHADER_F32),
+        };
+        Ok(Renderer {
+            gbuffer: GbufferPass::new(gpu)?,
+            reproject: Pipeline::compute(gpu, reproject::SHADER)?,
+            irradiance: Pipeline::compute(gpu, irradiance::SHADER)?,
+            target_mirror: Pipeline::compute(gpu, target_mirror::SHADER)?,
+            features: Pipeline::compute(gpu, feat)?,
+            output: Pipeline::compute(gpu, out)?,
+            gpu: gpu.clone(),
+            scene,
+            net,
+            storage,
+            bufs: None,
+        })
+    }
+
+    fn buffers(&mut self, width: u32, height: u32) -> Result<&FrameBuffers> {
+        if self
+            .bufs
+            .as_ref()
+            .is_none_or(|b| (b.width, b.height) != (width, height))
+        {
+            self.bufs = None;
+            let gpu = &self.gpu;
+            let n = (width * height) as u64;
+            let buf = |name: &str, size: u64| {
+                Buffer::new(
+                    gpu,
+                    name,
+                    size.max(16),
+                    vk::BufferUsageFlags::STORAGE_BUFFER,
+                    MemoryLocation::GpuOnly,
+                )
+            };
+            let nl = self.scene.lights.len().max(1) as u64;
+            self.bufs = Some(FrameBuffers {
+                width,
+                height,
+                gbuf: Gbuffer::new(gpu, width, height)?,
+                comp: buf("frame composites", reproject::PLANES as u64 * n * 16)?,
+                irr: buf("frame irradiance", irradiance::PLANES as u64 * n * 16)?,
+                mirror: buf("frame target mirror", n * 16)?,
+                active: buf("frame active views", MAX_ACTIVE as u64 * 4)?,
+                intensity: buf("frame intensities", nl * 4)?,
+                input: Tensor::new(
+                    gpu,
+                    "frame input",
+                    INPUT_CHANNELS,
+                    height,
+                    width,
+                    self.storage,
+                )?,
+                hdr: buf("frame hdr", n * 16)?,
+                ldr: buf("frame ldr", n * 4)?,
+                net: match &self.net {
+                    Some(net) => Some(net.buffers(height, width)?),
+                    None => None,
+                },
+                dummy_net_out: Tensor::new(gpu, "no network", 6, 1, 1, self.storage)?,
+            });
+        }
+        Ok(self.bufs.as_ref().unwrap())
+    }
+
+    /// Renders `cam` under `lighting` and waits; read the results with [`Renderer::buffers_ref`].
+    /// With a timer: one span per pass.
+    pub fn render(
+        &mut self,
+        cam: &Camera,
+        lighting: &Lighting,
+        mode: Mode,
+        exposure: f32,
+        mut timer: Option<&mut Timer>,
+    ) -> Result<()> {
+        if mode == Mode::Network && self.net.is_none() {
+            return Err(Error::Other(
+                "network mode needs weights (--weights FILE.safetensors); use --mode ulr".into(),
+            ));
+        }
+        if lighting.intensities.len() != self.scene.lights.len() {
+            return Err(Error::Other(format!(
+                "lighting has {} intensities; the scene has {} added lights",
+                lighting.intensities.len(),
+                self.scene.lights.len()
+            )));
+        }
+        let (width, height) = (cam.width, cam.height);
+        self.buffers(width, height)?;
+        let b = self.bufs.as_ref().unwrap();
+        let eye = cam.center();
+        let active = select_active(&self.scene.data.cameras, eye);
+        b.active.upload(bytemuck::cast_slice(&active))?;
+        let mut ints = lighting.intensities.clone();
+        ints.resize(self.scene.lights.len().max(1), 0.0);
+        b.intensity.upload(bytemuck::cast_slice(&ints))?;
+        let s = &self.scene;
+        let sm = s.sampler.raw;
+        let net_out = b.net.as_ref().map(|n| &n.out).unwrap_or(&b.dummy_net_out);
+        let mut binds: Vec<(u32, Bind)> = s.views.binds(0).to_vec();
+        binds.extend([
+            (4, Bind::StorageImage(b.gbuf.pos_depth.view)),
+            (5, Bind::StorageImage(b.gbuf.normal.view)),
+            (6, Bind::Buffer(&b.active)),
+            (7, Bind::Sampled(s.maps.img.view, sm)),
+            (8, Bind::Sampled(s.maps.msrc.view, sm)),
+            (9, Bind::Sampled(s.maps.esrc.view, sm)),
+            (10, Bind::Sampled(s.maps.eadd.view, sm)),
+            (11, Bind::Buffer(&b.intensity)),
+            (12, Bind::Accel(s.mesh.tlas.raw)),
+            (14, Bind::Buffer(&b.irr)),
+            (15, Bind::Buffer(&b.mirror)),
+            (16, Bind::Buffer(&b.input.buf)),
+            (17, Bind::Buffer(&b.hdr)),
+            (18, Bind::Buffer(&b.ldr)),
+        ]);
+        // Binding 13 is each pass's own output (the composites for the passes that read them).
+        fn with13<'a>(binds: &[(u32, Bind<'a>)], buf: &'a Buffer) -> Vec<(u32, Bind<'a>)> {
+            let mut v = binds.to_vec();
+            v.push((13, Bind::Buffer(buf)));
+            v
+        }
+        let e4 = [eye.x, eye.y, eye.z, 1.0];
+        let npix = width * height;
+        let threads = (npix, 1, 1);
+        let (vw, vh) = (s.views.width, s.views.height);
+        let nlights = s.lights.len() as u32;
+        let mut res: Result<()> = Ok(());
+        let gpu = self.gpu.clone();
+        gpu.submit(|cmd| {
+            res = (|| {
+                macro_rules! timed {
+                    ($label:expr, $body:expr) => {{
+                        let sp = match timer.as_deref_mut() {
+                            Some(t) => Some(t.begin(cmd, $label)?),
+                            None => None,
+                        };
+                        $body;
+                        if let (Some(sp), Some(t)) = (sp, timer.as_deref()) {
+                            t.end(cmd, sp);
+                        }
+                    }};
+                }
+                timed!("g-buffer", {
+                    self.gbuffer.record(cmd, &s.mesh, cam, NEAR, FAR, &b.gbuf)?;
+                    full_barrier(&gpu, cmd);
+                });
+                timed!("reproject", {
+                    let push = reproject::Push {
+                        eye: e4,
+                        width,
+                        height,
+                        nactive: active.len() as u32,
+                        view_w: vw,
+                        view_h: vh,
+                    };
+                    self.reproject.dispatch_subset(
+                        cmd,
+                        &with13(&binds, &b.comp),
+                        bytes_of(&push),
+                        threads,
+                    )?;
+                });
+                timed!("irradiance", {
+                    let push = irradiance::Push {
+                        eye: e4,
+                        width,
+                        height,
+                        nactive: active.len() as u32,
+                        view_w: vw,
+                        view_h: vh,
+                        nviews: s.views.count,
+                        nlights,
+                        alpha_dim: lighting.alpha_dim,
+                    };
+                    self.irradiance.dispatch_subset(
+                        cmd,
+                        &with13(&binds, &b.irr),
+                        bytes_of(&push),
+                        threads,
+                    )?;
+                });
+                timed!("target mirror", {
+                    let push = target_mirror::Push {
+                        eye: e4,
+                        width,
+                        height,
+                        view_w: vw,
+                        view_h: vh,
+                        nviews: s.views.count,
+                        nlights,
+                        alpha_dim: lighting.alpha_dim,
+                    };
+                    self.target_mirror.dispatch_subset(
+                        cmd,
+                        &with13(&binds, &b.mirror),
+                        bytes_of(&push),
+                        threads,
+                    )?;
+                });
+                full_barrier(&gpu, cmd);
+                timed!("features", {
+                    let push = features::Push {
+                        eye: e4,
+                        width,
+                        height,
+                    };
+                    self.features.dispatch_subset(
+                        cmd,
+                        &with13(&binds, &b.comp),
+                        bytes_of(&push),
+                        threads,
+                    )?;
+                    full_barrier(&gpu, cmd);
+                });
+                if mode == Mode::Network {
+                    let (net, nb) = (self.net.as_ref().unwrap(), b.net.as_ref().unwrap());
+                    net.record(cmd, nb, &b.input, timer.as_deref_mut())?;
+                }
+                timed!("output", {
+                    let push = output::Push {
+                        width,
+                        height,
+                        mode: if mode == Mode::Network { 0 } else { 1 },
+                        exposure,
+                    };
+                    let mut v = with13(&binds, &b.comp);
+                    v.retain(|(i, _)| *i != 16);
+                    v.push((16, Bind::Buffer(&net_out.buf)));
+                    self.output
+                        .dispatch_subset(cmd, &v, bytes_of(&push), threads)?;
+                });
+                Ok(())
+            })();
+        })?;
+        res
+    }
+
+    /// The buffers of the last [`Renderer::render`].
+    pub fn buffers_ref(&self) -> Option<&FrameBuffers> {
+        self.bufs.as_ref()
+    }
+
+    /// Linear RGB of the last frame.
+    pub fn hdr(&self) -> Result<Vec<[f32; 4]>> {
+        let b = self.last()?;
+        let mut v: Vec<[f32; 4]> = b.hdr.download_vec()?;
+        v.truncate((b.width * b.height) as usize);
+        Ok(v)
+    }
+
+    /// Display RGBA8 of the last frame.
+    pub fn ldr(&self) -> Result<Vec<u8>> {
+        let b = self.last()?;
+        let n = (b.width * b.height * 4) as u64;
+        b.ldr.download_range(0, n)
+    }
+
+    fn last(&self) -> Result<&FrameBuffers> {
+        self.bufs
+            .as_ref()
+            .ok_or_else(|| Error::Other("no frame rendered yet".into()))
+    }
+}

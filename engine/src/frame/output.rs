@@ -1,0 +1,46 @@
+//! The frame's output (§5.2): `shaders_glsl/frame/output.glsl`. Network mode sums the diffuse
+//! and view-dependent outputs in tonemapped space and inverts the tonemap; ULR mode shows the
+//! `I_1` composite. Linear HDR for EXR, exposure + sRGB in 8 bits for screens and PNG.
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Push {
+    pub width: u32,
+    pub height: u32,
+    pub mode: u32,
+    pub exposure: f32,
+}
+
+pub const SHADER_F16: &str = "frame/output.comp";
+pub const SHADER_F32: &str = "frame/output_f32.comp";
+
+/// sRGB transfer function of a linear value, clamped to [0, 1].
+pub fn srgb(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.0031308 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// CPU reference of network mode: linear RGB per pixel from the 6 output channels (planar CHW),
+/// black where `has_surface` is false.
+pub fn reference_network(net_out: &[f32], npix: usize, has_surface: &[bool]) -> Vec<[f32; 3]> {
+    (0..npix)
+        .map(|p| {
+            if !has_surface[p] {
+                return [0.0; 3];
+            }
+            let c = |k: usize| {
+                super::features::untonemap(net_out[k * npix + p] + net_out[(k + 3) * npix + p])
+            };
+            [c(0), c(1), c(2)]
+        })
+        .collect()
+}
+
+/// The display value (8-bit sRGB) of a linear colour at `exposure`.
+pub fn display(c: [f32; 3], exposure: f32) -> [u8; 3] {
+    c.map(|v| (srgb(v * exposure) * 255.0).round() as u8)
+}

@@ -1,0 +1,57 @@
+//! Target mirror image `M_tgt` (§4.2.2, eq. 5): `shaders_glsl/frame/target_mirror.comp`.
+
+use glam::Vec3;
+
+use super::RefInputs;
+use crate::scene::Mesh;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Push {
+    pub eye: [f32; 4],
+    pub width: u32,
+    pub height: u32,
+    pub view_w: u32,
+    pub view_h: u32,
+    pub nviews: u32,
+    pub nlights: u32,
+    pub alpha_dim: f32,
+}
+
+pub const SHADER: &str = "frame/target_mirror.comp";
+
+/// CPU reference: vec4 per pixel (rgb, reflected distance).
+pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
+    let npix = (r.width * r.height) as usize;
+    let nviews = r.data.cameras.len();
+    let vpix = r.data.pixels();
+    let v3 = |p: [f32; 4]| Vec3::new(p[0], p[1], p[2]);
+    (0..npix)
+        .map(|p| {
+            let Some((x, n)) = r.surface(p) else {
+                return [0.0; 4];
+            };
+            let v = (x - r.eye).normalize();
+            let rd = v - 2.0 * n.dot(v) * n;
+            let o = x + n * 1e-3;
+            let Some(h) = crate::cpu::closest_hit(mesh, o, rd, 1e-3, 1e4) else {
+                return [0.0; 4];
+            };
+            let y = o + rd * h.t;
+            let Some(q) = r.data.best_view(y, rd, usize::MAX) else {
+                return [0.0; 4];
+            };
+            let (j, qp) = (q / vpix, q % vpix);
+            let col = v3(r.maps.img[j][qp]);
+            let es = v3(r.maps.esrc[j][qp]);
+            let mut ea = Vec3::ZERO;
+            for (l, &s) in r.intensities.iter().enumerate() {
+                if s != 0.0 {
+                    ea += s * v3(r.maps.eadd[l * nviews + j][qp]);
+                }
+            }
+            let m = col / es.max(Vec3::splat(1e-4)) * (ea + es - r.alpha_dim * es);
+            [m.x, m.y, m.z, y.distance(x)]
+        })
+        .collect()
+}

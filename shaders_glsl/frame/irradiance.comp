@@ -1,0 +1,53 @@
+#version 460
+// Irradiance composites (§4.3.3): E_src and E_add are averages over the active views that see
+// the surface point (depth test), weighted by the inverse distance between each view's camera
+// and the novel camera; E_add mixes the added lights by their current intensities, and
+// E_rem = α_dim · E_src. Output: 3 planes of vec4 per pixel (E_src, E_add, E_rem).
+#extension GL_EXT_scalar_block_layout : require
+#extension GL_GOOGLE_include_directive : require
+
+layout(local_size_x = 64) in;
+
+#include "frame.glsl"
+
+layout(set = 0, binding = 6) readonly buffer Active { uint active_views[]; };
+layout(set = 0, binding = 9) uniform sampler2DArray tex_esrc;
+layout(set = 0, binding = 10) uniform sampler2DArray tex_eadd;
+layout(set = 0, binding = 11) readonly buffer Intensity { float intensity[]; };
+layout(set = 0, binding = 13) writeonly buffer Out { vec4 irr[]; };
+
+layout(push_constant) uniform Push {
+    vec4 eye;
+    uint width; uint height; uint nactive; uint view_w; uint view_h;
+    uint nviews; uint nlights; float alpha_dim;
+} pc;
+
+void main() {
+    uint p = gl_GlobalInvocationID.x;
+    uint npix = pc.width * pc.height;
+    if (p >= npix) return;
+    for (uint k = 0u; k < 3u; ++k) irr[k * npix + p] = vec4(0.0);
+    vec3 x, n;
+    float depth;
+    vec3 eye = pc.eye.xyz;
+    if (!surface(p, pc.width, eye, x, n, depth)) return;
+    vec3 es = vec3(0.0), ea = vec3(0.0);
+    float sw = 0.0;
+    for (uint a = 0u; a < pc.nactive; ++a) {
+        uint j = active_views[a];
+        if (visible_pixel(j, x, pc.view_w, pc.view_h) < 0) continue;
+        vec2 px = project_px(j, x);
+        float w = 1.0 / max(distance(cam_center(cams[j]), eye), 1e-3);
+        es += w * sample_map(tex_esrc, px, j);
+        vec3 add = vec3(0.0);
+        for (uint l = 0u; l < pc.nlights; ++l) {
+            if (intensity[l] != 0.0) add += intensity[l] * sample_map(tex_eadd, px, l * pc.nviews + j);
+        }
+        ea += w * add;
+        sw += w;
+    }
+    if (sw <= 0.0) return;
+    irr[p] = vec4(es / sw, 1.0);
+    irr[npix + p] = vec4(ea / sw, 1.0);
+    irr[2u * npix + p] = vec4(pc.alpha_dim * es / sw, 1.0);
+}

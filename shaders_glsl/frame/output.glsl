@@ -1,0 +1,48 @@
+// The frame's output (§5.2): in network mode O = O_diffuse + O_vdep from the network's 6
+// channels (tonemapped space), inverted to linear HDR: x = ((1 + μ)^O − 1) / μ, μ = 64; in ULR
+// mode the I_1 composite (already linear). Writes linear RGBA32F (EXR) and a display image:
+// exposure (a linear scale) then the sRGB transfer function, 8 bits (screen, PNG).
+#extension GL_EXT_shader_explicit_arithmetic_types_float16 : require
+#extension GL_EXT_shader_16bit_storage : require
+#ifdef STORE_F32
+#define ACT4 vec4
+#else
+#define ACT4 f16vec4
+#endif
+
+layout(local_size_x = 64) in;
+
+layout(set = 0, binding = 4, rgba32f) readonly uniform image2D g_pos;
+layout(set = 0, binding = 13) readonly buffer Comp { vec4 comp[]; };
+layout(set = 0, binding = 16) readonly buffer Net { ACT4 o[]; };   // 6 channels, pack4
+layout(set = 0, binding = 17) writeonly buffer Hdr { vec4 hdr[]; };
+layout(set = 0, binding = 18) writeonly buffer Ldr { uint ldr[]; };
+
+layout(push_constant) uniform Push { uint width; uint height; uint mode; float exposure; } pc;
+
+const uint MODE_NETWORK = 0u;
+
+float srgb(float x) {
+    x = clamp(x, 0.0, 1.0);
+    return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
+}
+
+void main() {
+    uint p = gl_GlobalInvocationID.x;
+    uint npix = pc.width * pc.height;
+    if (p >= npix) return;
+    vec3 c = vec3(0.0);
+    if (imageLoad(g_pos, ivec2(p % pc.width, p / pc.width)).w > 0.0) {
+        if (pc.mode == MODE_NETWORK) {
+            vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
+            vec3 tmo = max(a.xyz + vec3(a.w, b.x, b.y), vec3(0.0));
+            c = (pow(vec3(65.0), tmo) - 1.0) / 64.0;
+        } else {
+            c = comp[p].rgb;
+        }
+    }
+    hdr[p] = vec4(c, 1.0);
+    vec3 d = c * pc.exposure;
+    uvec3 q = uvec3(round(vec3(srgb(d.r), srgb(d.g), srgb(d.b)) * 255.0));
+    ldr[p] = q.r | (q.g << 8) | (q.b << 16) | (255u << 24);
+}

@@ -1,0 +1,58 @@
+#version 460
+// Target mirror image M_tgt (§4.2.2, eq. 5): one ray query per pixel in the mirror direction of
+// the novel view at the first surface; its hit y takes its value from the input view whose
+// viewing direction onto y is best aligned with the reflected ray (among all views that see y):
+//   I_i / E_src_i · (E_add_i + E_src_i − E_rem_i),  E_rem_i = α_dim · E_src_i,
+// read at y's pixel in view i (nearest texel, as the depth test). E_src is floored at 1e-4
+// (W/m²) in the ratio. Output vec4: rgb, w = reflected distance |y − x| (0: no hit, no view).
+#extension GL_EXT_ray_query : require
+#extension GL_EXT_scalar_block_layout : require
+#extension GL_GOOGLE_include_directive : require
+
+layout(local_size_x = 64) in;
+
+#include "frame.glsl"
+
+layout(set = 0, binding = 7) uniform sampler2DArray tex_img;
+layout(set = 0, binding = 9) uniform sampler2DArray tex_esrc;
+layout(set = 0, binding = 10) uniform sampler2DArray tex_eadd;
+layout(set = 0, binding = 11) readonly buffer Intensity { float intensity[]; };
+layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
+layout(set = 0, binding = 13) writeonly buffer Out { vec4 mirror[]; };
+
+layout(push_constant) uniform Push {
+    vec4 eye;
+    uint width; uint height; uint view_w; uint view_h;
+    uint nviews; uint nlights; float alpha_dim;
+} pc;
+
+void main() {
+    uint p = gl_GlobalInvocationID.x;
+    if (p >= pc.width * pc.height) return;
+    mirror[p] = vec4(0.0);
+    vec3 x, n;
+    float depth;
+    vec3 eye = pc.eye.xyz;
+    if (!surface(p, pc.width, eye, x, n, depth)) return;
+    vec3 r = reflect(normalize(x - eye), n);
+    vec3 o = x + n * 1e-3;
+    rayQueryEXT rq;
+    rayQueryInitializeEXT(rq, tlas, gl_RayFlagsOpaqueEXT, 0xFF, o, 1e-3, r, 1e4);
+    while (rayQueryProceedEXT(rq)) {}
+    if (rayQueryGetIntersectionTypeEXT(rq, true) != gl_RayQueryCommittedIntersectionTriangleEXT) return;
+    float t = rayQueryGetIntersectionTEXT(rq, true);
+    vec3 y = o + r * t;
+    int q = best_view(y, r, 0xFFFFFFFFu, pc.nviews, pc.view_w, pc.view_h);
+    if (q < 0) return;
+    uint npv = pc.view_w * pc.view_h;
+    uint j = uint(q) / npv, qp = uint(q) % npv;
+    ivec2 xy = ivec2(qp % pc.view_w, qp / pc.view_w);
+    vec3 col = texelFetch(tex_img, ivec3(xy, j), 0).rgb;
+    vec3 es = texelFetch(tex_esrc, ivec3(xy, j), 0).rgb;
+    vec3 ea = vec3(0.0);
+    for (uint l = 0u; l < pc.nlights; ++l) {
+        if (intensity[l] != 0.0) ea += intensity[l] * texelFetch(tex_eadd, ivec3(xy, l * pc.nviews + j), 0).rgb;
+    }
+    vec3 modified = ea + es - pc.alpha_dim * es;
+    mirror[p] = vec4(col / max(es, vec3(1e-4)) * modified, distance(y, x));
+}

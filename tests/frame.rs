@@ -1,0 +1,327 @@
+//! Frame passes (§4.2.2, §4.3, §4.4, §5.2) against their CPU references on a tiny scene: the
+//! procedural test room, 6 views at 32×24, a novel camera at 40×30, exact (RGBA32F) maps,
+//! validation on.
+
+mod common;
+
+use glam::Vec3;
+use relit_engine::frame::{
+    self, features, irradiance, output, reproject, target_mirror, FrameScene, HostMaps, Lighting,
+    MapFormat, Mode, RefInputs, Renderer,
+};
+use relit_engine::net::{NetConfig, NetKernels, Network, RandomParams, Storage};
+use relit_engine::scene::synth::{self, SynthOptions};
+use relit_engine::scene::{Camera, Mesh};
+
+struct Tiny {
+    mesh: Mesh,
+    cams: Vec<Camera>,
+    host: HostMaps,
+    novel: Camera,
+}
+
+/// Smooth, positive, position-dependent fields stand in for the baked maps (the passes only
+/// resample them); images are CPU-shaded.
+fn tiny() -> Tiny {
+    let o = SynthOptions {
+        views: 6,
+        width: 32,
+        height: 24,
+        seed: 3,
+        wall_subdiv: 2,
+    };
+    let (mesh, albedo) = synth::room(o.wall_subdiv);
+    let (lights, _) = synth::room_lights();
+    let cams = synth::capture_cameras(&o);
+    let mut host = HostMaps {
+        width: 32,
+        height: 24,
+        ..Default::default()
+    };
+    let field = |c: &Camera, f: &dyn Fn(Vec3) -> [f32; 4]| -> Vec<[f32; 4]> {
+        let mut v = Vec::new();
+        for y in 0..c.height {
+            for x in 0..c.width {
+                let d = c.ray_dir(glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5));
+                let p = match relit_engine::cpu::closest_hit(&mesh, c.center(), d, 0.0, 1e4) {
+                    Some(h) => c.center() + d * h.t,
+                    None => Vec3::ZERO,
+                };
+                v.push(f(p));
+            }
+        }
+        v
+    };
+    for c in &cams {
+        let img = synth::shade(&mesh, &albedo, c, &lights[0]);
+        host.img
+            .push(img.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect());
+        host.msrc.push(field(c, &|p| {
+            [0.2 + 0.1 * p.x.sin(), 0.3 + 0.1 * p.y.cos(), 0.25, 1.0]
+        }));
+        host.esrc.push(field(c, &|p| {
+            [2.0 + p.y, 2.5 + 0.5 * p.x.cos(), 3.0 + 0.3 * p.z, 1.0]
+        }));
+    }
+    for l in 0..2 {
+        for c in &cams {
+            host.eadd.push(field(c, &|p| {
+                let s = 1.0 + l as f32;
+                [
+                    s * (1.0 + 0.2 * p.x),
+                    s * 0.8,
+                    s * (0.5 + 0.1 * p.z.abs()),
+                    1.0,
+                ]
+            }));
+        }
+    }
+    let c0 = &cams[0];
+    let eye = c0.center() + Vec3::new(0.15, -0.05, 0.1);
+    let target = eye + c0.rotation.transpose() * Vec3::Z + Vec3::new(0.1, 0.0, 0.0);
+    let novel = Camera::look_at(eye, target, Vec3::Y, 40, 30, 30.0);
+    Tiny {
+        mesh,
+        cams,
+        host,
+        novel,
+    }
+}
+
+/// (fraction of pixels where any channel differs by more than `tol` relative to the scale of
+/// the reference, worst difference).
+fn mismatch(gpu: &[[f32; 4]], cpu: &[[f32; 4]], tol: f32) -> (f32, f32) {
+    let scale = cpu
+        .iter()
+        .flat_map(|p| p[..3].iter())
+        .fold(0f32, |m, v| m.max(v.abs()))
+        .max(1e-6);
+    let mut bad = 0;
+    let mut worst = 0f32;
+    for (g, c) in gpu.iter().zip(cpu) {
+        let e = (0..4).map(|k| (g[k] - c[k]).abs()).fold(0f32, f32::max) / scale;
+        worst = worst.max(e);
+        if e > tol {
+            bad += 1;
+        }
+    }
+    (bad as f32 / gpu.len().max(1) as f32, worst)
+}
+
+#[test]
+fn frame_passes_match_cpu_references() {
+    let gpu = common::gpu();
+    let t = tiny();
+    let lights = vec!["a".to_string(), "b".to_string()];
+    let scene = FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, lights, MapFormat::Rgba32f)
+        .unwrap();
+    let mut r = Renderer::new(&gpu, scene, None, Storage::F32).unwrap();
+    let lighting = Lighting {
+        intensities: vec![0.7, 0.0],
+        alpha_dim: 0.4,
+    };
+    r.render(&t.novel, &lighting, Mode::Ulr, 1.0, None).unwrap();
+    let b = r.buffers_ref().unwrap();
+    let g = b.gbuf.download().unwrap();
+    let npix = (t.novel.width * t.novel.height) as usize;
+    let surf = g.pos_depth.iter().filter(|p| p[3] > 0.0).count();
+    assert!(surf * 10 > npix * 9, "the novel view must see the room");
+    let eye = t.novel.center();
+    let active = frame::select_active(&r.scene.data.cameras, eye);
+    let inputs = RefInputs {
+        data: &r.scene.data,
+        maps: &t.host,
+        gpos: &g.pos_depth,
+        gnrm: &g.normal,
+        width: t.novel.width,
+        height: t.novel.height,
+        eye,
+        active: &active,
+        intensities: &lighting.intensities,
+        alpha_dim: lighting.alpha_dim,
+    };
+    let dl = |buf: &relit_engine::gpu::Buffer, planes: usize| {
+        let mut v: Vec<[f32; 4]> = buf.download_vec().unwrap();
+        v.truncate(planes * npix);
+        v
+    };
+
+    // Reproject: the depth test and the luminance ranks can flip at edges where GPU and CPU
+    // projections differ in the last bit; bilinear weights on lavapipe are 8-bit fixed point.
+    // 1% of the reference's scale on ≥ 97% of pixels, per plane.
+    let comp = dl(&b.comp, reproject::PLANES);
+    let comp_ref = reproject::reference(&inputs);
+    for k in 0..reproject::PLANES {
+        let s = k * npix..(k + 1) * npix;
+        let (bad, worst) = mismatch(&comp[s.clone()], &comp_ref[s.clone()], 0.01);
+        eprintln!("composite {k}: {:.2}% over, worst {worst:.4}", bad * 100.0);
+        assert!(
+            bad <= 0.03,
+            "composite plane {k}: {:.1}% differ",
+            bad * 100.0
+        );
+        let defined = comp_ref[s].iter().filter(|p| p[3] > 0.0).count();
+        assert!(
+            defined * 10 > surf * 8,
+            "plane {k}: most surface pixels have data"
+        );
+    }
+    // I_5 (max) ≥ I_7 (median) ≥ I_8 (min) in luminance, where defined.
+    let lum = |p: [f32; 4]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+    for p in 0..npix {
+        let (hi, med, lo) = (
+            comp_ref[4 * npix + p],
+            comp_ref[6 * npix + p],
+            comp_ref[7 * npix + p],
+        );
+        assert!(lum(hi) + 1e-6 >= lum(med) && lum(med) + 1e-6 >= lum(lo));
+    }
+
+    let irr = dl(&b.irr, irradiance::PLANES);
+    let irr_ref = irradiance::reference(&inputs);
+    for k in 0..irradiance::PLANES {
+        let s = k * npix..(k + 1) * npix;
+        let (bad, worst) = mismatch(&irr[s.clone()], &irr_ref[s], 0.01);
+        eprintln!("irradiance {k}: {:.2}% over, worst {worst:.4}", bad * 100.0);
+        assert!(
+            bad <= 0.03,
+            "irradiance plane {k}: {:.1}% differ",
+            bad * 100.0
+        );
+    }
+
+    // Target mirror: the ray hit and the best view may differ at edges: same bounds.
+    let mirror = dl(&b.mirror, 1);
+    let mirror_ref = target_mirror::reference(&inputs, &t.mesh);
+    let (bad, worst) = mismatch(&mirror, &mirror_ref, 0.01);
+    eprintln!("target mirror: {:.2}% over, worst {worst:.4}", bad * 100.0);
+    assert!(bad <= 0.03, "target mirror: {:.1}% differ", bad * 100.0);
+    assert!(mirror_ref.iter().filter(|p| p[3] > 0.0).count() * 2 > surf);
+
+    // Features from the GPU's own pass outputs: exact up to float rounding (1e-4).
+    let feats = b.input.download_chw().unwrap();
+    let feats_ref = features::reference(&inputs, &comp, &irr, &mirror);
+    assert_eq!(feats.len(), 66 * npix);
+    for c in 0..66 {
+        for p in 0..npix {
+            let (a, e) = (feats[c * npix + p], feats_ref[c * npix + p]);
+            assert!(
+                (a - e).abs() <= 1e-4 * e.abs().max(1.0),
+                "channel {c} ({}) pixel {p}: {a} vs {e}",
+                features::channel_names()[c]
+            );
+        }
+    }
+
+    // ULR output: I_1 as linear HDR, display = exposure + sRGB (±1 code value).
+    let hdr = r.hdr().unwrap();
+    let ldr = r.ldr().unwrap();
+    for p in 0..npix {
+        let want = if g.pos_depth[p][3] > 0.0 {
+            comp[p]
+        } else {
+            [0.0; 4]
+        };
+        for k in 0..3 {
+            assert!((hdr[p][k] - want[k]).abs() <= 1e-6, "hdr pixel {p}");
+        }
+        let d = output::display([want[0], want[1], want[2]], 1.0);
+        for k in 0..3 {
+            assert!(
+                (ldr[4 * p + k] as i32 - d[k] as i32).abs() <= 1,
+                "ldr pixel {p}"
+            );
+        }
+    }
+    common::assert_no_validation_errors(&gpu);
+}
+
+/// Network mode end to end: the frame's output equals the output transform applied to the
+/// network run separately on the frame's own input tensor.
+#[test]
+fn network_mode_output_matches_network_on_the_frame_input() {
+    let gpu = common::gpu();
+    let t = tiny();
+    for storage in [Storage::F32, Storage::F16] {
+        let scene =
+            FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, vec![], MapFormat::Rgba16f)
+                .unwrap();
+        let mut cfg = NetConfig::paper(8);
+        cfg.levels = 3;
+        let mk = || {
+            Network::from_params(
+                NetKernels::new(&gpu, storage).unwrap(),
+                cfg.clone(),
+                &RandomParams(4),
+            )
+            .unwrap()
+        };
+        let mut r = Renderer::new(&gpu, scene, Some(mk()), storage).unwrap();
+        let lighting = Lighting {
+            intensities: vec![],
+            alpha_dim: 0.0,
+        };
+        r.render(&t.novel, &lighting, Mode::Network, 2.0, None)
+            .unwrap();
+        let b = r.buffers_ref().unwrap();
+        let (w, h) = (t.novel.width, t.novel.height);
+        let npix = (w * h) as usize;
+        let input = b.input.download_chw().unwrap();
+        let has: Vec<bool> = b
+            .gbuf
+            .download()
+            .unwrap()
+            .pos_depth
+            .iter()
+            .map(|p| p[3] > 0.0)
+            .collect();
+        let out = mk().run(&input, h, w).unwrap();
+        let want = output::reference_network(&out, npix, &has);
+        let hdr = r.hdr().unwrap();
+        for p in 0..npix {
+            for k in 0..3 {
+                let tol = 1e-3 * want[p][k].abs().max(1.0);
+                assert!(
+                    (hdr[p][k] - want[p][k]).abs() <= tol,
+                    "{storage:?} pixel {p}: {} vs {}",
+                    hdr[p][k],
+                    want[p][k]
+                );
+            }
+        }
+        assert!(r
+            .render(&t.novel, &lighting, Mode::Network, 1.0, None)
+            .is_ok());
+    }
+    common::assert_no_validation_errors(&gpu);
+}
+
+#[test]
+fn lighting_presets_and_errors() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/demo_room");
+    let scene = relit_engine::scene::Scene::load(&dir).unwrap();
+    let l = Lighting::preset(&scene, "extra0_on_dimmed").unwrap();
+    let names = frame::added_lights(&scene);
+    assert_eq!(l.intensities.len(), names.len());
+    let i = names.iter().position(|n| n == "extra0").unwrap();
+    assert_eq!(l.intensities[i], 1.0);
+    assert_eq!(l.alpha_dim, 0.5);
+    let e = Lighting::preset(&scene, "nope").unwrap_err().to_string();
+    assert!(e.contains("nope") && e.contains("extra0_on_dimmed"), "{e}");
+    // Per-frame culling keeps at most MAX_ACTIVE views, the nearest ones.
+    let cams: Vec<Camera> = (0..100)
+        .map(|i| {
+            Camera::look_at(
+                Vec3::new(i as f32, 0.0, 0.0),
+                Vec3::new(i as f32, 0.0, 1.0),
+                Vec3::Y,
+                8,
+                8,
+                8.0,
+            )
+        })
+        .collect();
+    let a = frame::select_active(&cams, Vec3::new(10.0, 0.0, 0.0));
+    assert_eq!(a.len(), frame::MAX_ACTIVE);
+    assert!(a.contains(&10) && a.contains(&0) && !a.contains(&99));
+}
