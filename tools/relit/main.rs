@@ -1,6 +1,7 @@
 //! `relit`: the command-line front end. Thin: every subcommand calls into the engine library.
 
 mod bench;
+mod render;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -60,6 +61,52 @@ enum Cmd {
         #[arg(long)]
         uncompressed: bool,
     },
+    /// Render one novel view of a baked scene to EXR (linear) or PNG (display transform).
+    Render {
+        scene: PathBuf,
+        /// A view index, a view or test-view name, or a camera JSON file.
+        #[arg(long)]
+        camera: String,
+        /// Lighting preset of the scene (default: the original lighting).
+        #[arg(long)]
+        lighting: Option<String>,
+        /// Image size WxH (default: the camera's).
+        #[arg(long, value_parser = parse_res)]
+        res: Option<(u32, u32)>,
+        #[arg(long)]
+        out: PathBuf,
+        #[command(flatten)]
+        frame: render::FrameArgs,
+    },
+    /// Record a flythrough along a camera path: an MP4 (ffmpeg) or a directory of PNG frames.
+    Fly {
+        scene: PathBuf,
+        /// Camera path JSON (keyframes and lighting keyframes; see the README).
+        #[arg(long)]
+        path: PathBuf,
+        /// video.mp4, or a directory for frame00000.png, …
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value = "256x192", value_parser = parse_res)]
+        res: (u32, u32),
+        #[arg(long, default_value_t = 24.0)]
+        fps: f32,
+        #[command(flatten)]
+        frame: render::FrameArgs,
+    },
+    /// Write the exact 66-channel network input of a camera (and the ground-truth targets of a
+    /// synthetic scene) as safetensors, for the trainer.
+    Dump {
+        scene: PathBuf,
+        #[arg(long)]
+        camera: String,
+        #[arg(long)]
+        lighting: Option<String>,
+        #[arg(long)]
+        out: PathBuf,
+        #[command(flatten)]
+        frame: render::FrameArgs,
+    },
     /// Benchmarks (GPU timestamps; figures, never pass/fail).
     Bench {
         #[command(subcommand)]
@@ -68,7 +115,7 @@ enum Cmd {
 }
 
 /// Element type of the network's tensors in device memory.
-#[derive(Clone, Copy, Debug, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum StorageArg {
     F16,
     F32,
@@ -83,7 +130,7 @@ impl From<StorageArg> for relit_engine::net::Storage {
     }
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Quality {
     Preview,
     Final,
@@ -473,6 +520,29 @@ fn main() {
                 .map_err(Into::into)
         }
         Cmd::Bench { cmd } => bench::run(cmd, &opts),
+        Cmd::Render {
+            scene,
+            camera,
+            lighting,
+            res,
+            out,
+            frame,
+        } => render::render(&opts, scene, camera, *res, lighting.as_deref(), out, frame),
+        Cmd::Fly {
+            scene,
+            path,
+            out,
+            res,
+            fps,
+            frame,
+        } => render::fly(&opts, scene, path, out, *res, *fps, frame),
+        Cmd::Dump {
+            scene,
+            camera,
+            lighting,
+            out,
+            frame,
+        } => render::dump(&opts, scene, camera, lighting.as_deref(), out, frame),
         Cmd::Bake {
             scene,
             views,

@@ -160,6 +160,80 @@ fn from_image(img: &RgbImage) -> Vec<[f32; 4]> {
     img.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect()
 }
 
+/// `params.json` in a cache: the parameters that made it, so readers can find every bake of
+/// a scene (the key alone cannot be inverted).
+fn write_params(cache: &Path, p: &BakeParams) -> Result<()> {
+    let d = p.denoise;
+    let doc = serde_json::json!({
+        "irradiance_samples": p.irradiance_samples, "added_samples": p.added_samples,
+        "bounces": p.bounces, "seed": p.seed, "mesh_process": p.mesh_process,
+        "denoise": { "radius": d.radius, "sigma_px": d.sigma_px, "sigma_depth": d.sigma_depth,
+                     "normal_power": d.normal_power },
+    });
+    write_atomic(&cache.join("params.json"), doc.to_string().as_bytes())
+}
+
+fn read_params(path: &Path) -> Option<BakeParams> {
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(path).ok()?).ok()?;
+    let u = |k: &str| v.get(k)?.as_u64().map(|x| x as u32);
+    let d = v.get("denoise")?;
+    let f = |k: &str| d.get(k)?.as_f64().map(|x| x as f32);
+    Some(BakeParams {
+        irradiance_samples: u("irradiance_samples")?,
+        added_samples: u("added_samples")?,
+        bounces: u("bounces")?,
+        seed: u("seed")?,
+        views: None,
+        denoise: DenoiseParams {
+            radius: d.get("radius")?.as_i64()? as i32,
+            sigma_px: f("sigma_px")?,
+            sigma_depth: f("sigma_depth")?,
+            normal_power: f("normal_power")?,
+        },
+        compress: true,
+        mesh_process: v.get("mesh_process")?.as_bool()?,
+    })
+}
+
+/// Whether every map the frame reads is in the cache for `p`.
+pub fn is_complete(scene: &Scene, p: &BakeParams) -> Result<bool> {
+    let dir = cache_dir(scene, p)?;
+    let added: Vec<&str> = scene
+        .lights
+        .iter()
+        .filter(|l| !l.original)
+        .map(|l| l.name.as_str())
+        .collect();
+    Ok(scene.views.iter().all(|v| {
+        esrc_file(&dir, &v.name).exists()
+            && msrc_file(&dir, &v.name).exists()
+            && added.iter().all(|l| eadd_file(&dir, &v.name, l).exists())
+    }))
+}
+
+/// The complete, current bakes of `scene` (their key matches the scene's files as they are
+/// now), best first (most E_src rays, then most E_add paths).
+pub fn complete_bakes(scene: &Scene) -> Result<Vec<BakeParams>> {
+    let mut cands = vec![BakeParams::final_quality(), BakeParams::preview()];
+    if let Ok(rd) = std::fs::read_dir(scene.root.join(".relit")) {
+        let mut dirs: Vec<_> = rd.flatten().map(|e| e.path()).collect();
+        dirs.sort();
+        cands.extend(
+            dirs.iter()
+                .filter_map(|d| read_params(&d.join("params.json"))),
+        );
+    }
+    let mut out: Vec<(PathBuf, BakeParams)> = Vec::new();
+    for p in cands {
+        let dir = cache_dir(scene, &p)?;
+        if out.iter().all(|(d, _)| *d != dir) && is_complete(scene, &p)? {
+            out.push((dir, p));
+        }
+    }
+    out.sort_by_key(|(_, p)| std::cmp::Reverse((p.irradiance_samples, p.added_samples)));
+    Ok(out.into_iter().map(|(_, p)| p).collect())
+}
+
 /// File names of a view's cached maps.
 pub fn esrc_file(cache: &Path, view: &str) -> PathBuf {
     cache.join(format!("{view}.esrc.exr"))
@@ -206,6 +280,7 @@ pub fn bake(
 ) -> Result<BakeReport> {
     let cache = cache_dir(scene, p)?;
     std::fs::create_dir_all(&cache).map_err(|e| Error::io(&cache, e))?;
+    write_params(&cache, p)?;
     // Temp files of an interrupted run are never read; remove them.
     if let Ok(rd) = std::fs::read_dir(&cache) {
         for e in rd.flatten() {

@@ -72,6 +72,33 @@ impl Lighting {
     }
 }
 
+impl Lighting {
+    /// The lighting of a camera path at some time; every named light must be an added light.
+    pub fn from_path(
+        scene: &Scene,
+        l: &crate::scene::path::PathLighting,
+        file: &Path,
+    ) -> Result<Lighting> {
+        let names = added_lights(scene);
+        if let Some(n) = l.intensities.keys().find(|n| !names.contains(n)) {
+            return Err(Error::input(
+                file,
+                format!(
+                    "lighting: \"{n}\" is not an added light of the scene (added lights: {})",
+                    names.join(", ")
+                ),
+            ));
+        }
+        Ok(Lighting {
+            intensities: names
+                .iter()
+                .map(|n| l.intensities.get(n).copied().unwrap_or(0.0))
+                .collect(),
+            alpha_dim: l.dim,
+        })
+    }
+}
+
 /// Names of the added (non-original) lights, in the order of the E_add layers.
 pub fn added_lights(scene: &Scene) -> Vec<String> {
     scene

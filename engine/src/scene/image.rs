@@ -203,3 +203,21 @@ pub fn write_png(path: &Path, img: &RgbImage, exposure: f32) -> Result<()> {
         .map_err(|e| Error::input(path, format!("cannot write PNG: {e}")))?;
     std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
 }
+
+/// Writes 8-bit RGBA pixels (already display-transformed) as an RGB PNG, atomically.
+pub fn write_png_rgba8(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
+    let rgb: Vec<u8> = rgba
+        .chunks_exact(4)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    let buf = image::RgbImage::from_raw(width, height, rgb).ok_or_else(|| {
+        Error::Other(format!(
+            "{}: pixel count does not match {width}x{height}",
+            path.display()
+        ))
+    })?;
+    let tmp = crate::scene::temp_path(path);
+    buf.save_with_format(&tmp, image::ImageFormat::Png)
+        .map_err(|e| Error::input(path, format!("cannot write PNG: {e}")))?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+}

@@ -8,6 +8,7 @@ pub mod image;
 mod json;
 pub mod mesh;
 pub mod meshproc;
+pub mod path;
 mod sibr;
 pub mod synth;
 

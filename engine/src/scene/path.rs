@@ -1,0 +1,254 @@
+//! Camera paths for `relit fly`: keyframes (time, position, look-at point or rotation, field of
+//! view) with smooth interpolation, plus lighting keyframes (α_dim and added-light intensities).
+//!
+//! ```json
+//! { "interpolation": "catmull-rom" | "linear",
+//!   "keyframes": [ { "time": 0.0, "position": [x, y, z], "look_at": [x, y, z], "fov_deg": 70 },
+//!                  { "time": 2.0, "position": [...], "rotation": [[right], [down], [forward]],
+//!                    "fov_deg": 60 } ],
+//!   "lighting": [ { "time": 0.0, "dim": 0.0, "intensities": { "lamp": 1.0 } } ] }
+//! ```
+//! Positions and look-at points follow a uniform Catmull-Rom spline through the
+//! keyframes (ends clamped), or straight lines; rotations are slerped; the field of view
+//! (horizontal, degrees) and the lighting are interpolated linearly. Missing intensities are 0.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use glam::{Mat3, Quat, Vec3};
+use serde::Deserialize;
+
+use super::Camera;
+use crate::error::{Error, Result};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PathDoc {
+    #[serde(default = "default_interp")]
+    interpolation: String,
+    keyframes: Vec<KeyDoc>,
+    #[serde(default)]
+    lighting: Vec<LightKeyDoc>,
+}
+
+fn default_interp() -> String {
+    "catmull-rom".into()
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct KeyDoc {
+    time: f32,
+    position: [f32; 3],
+    #[serde(default)]
+    look_at: Option<[f32; 3]>,
+    #[serde(default)]
+    rotation: Option<[[f32; 3]; 3]>,
+    fov_deg: f32,
+}
+
+#[derive(Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightKeyDoc {
+    time: f32,
+    #[serde(default)]
+    dim: f32,
+    #[serde(default)]
+    intensities: BTreeMap<String, f32>,
+}
+
+#[derive(Clone, Debug)]
+struct Key {
+    time: f32,
+    position: Vec3,
+    look_at: Option<Vec3>,
+    /// Camera-to-world rotation (columns: right, down, forward).
+    rotation: Option<Quat>,
+    fov_deg: f32,
+}
+
+#[derive(Clone, Debug)]
+pub struct CameraPath {
+    keys: Vec<Key>,
+    lights: Vec<(f32, f32, BTreeMap<String, f32>)>,
+    catmull_rom: bool,
+}
+
+/// The lighting at one time: α_dim and the intensity of each named added light.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PathLighting {
+    pub dim: f32,
+    pub intensities: BTreeMap<String, f32>,
+}
+
+fn catmull_rom(p0: Vec3, p1: Vec3, p2: Vec3, p3: Vec3, u: f32) -> Vec3 {
+    let (u2, u3) = (u * u, u * u * u);
+    0.5 * ((2.0 * p1)
+        + (p2 - p0) * u
+        + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * u2
+        + (3.0 * p1 - p0 - 3.0 * p2 + p3) * u3)
+}
+
+impl CameraPath {
+    pub fn load(file: &Path) -> Result<CameraPath> {
+        let doc: PathDoc = super::json::parse(file)?;
+        let bad = |m: String| Error::input(file, m);
+        let catmull_rom = match doc.interpolation.as_str() {
+            "catmull-rom" => true,
+            "linear" => false,
+            o => {
+                return Err(bad(format!(
+                    "interpolation \"{o}\": expected \"catmull-rom\" or \"linear\""
+                )))
+            }
+        };
+        if doc.keyframes.is_empty() {
+            return Err(bad("keyframes: at least one keyframe is needed".into()));
+        }
+        let mut keys = Vec::new();
+        for (i, k) in doc.keyframes.iter().enumerate() {
+            let at = |m: &str| bad(format!("keyframes[{i}]: {m}"));
+            if !k.time.is_finite() || (i > 0 && k.time <= doc.keyframes[i - 1].time) {
+                return Err(at(
+                    "time must be finite and increase from keyframe to keyframe",
+                ));
+            }
+            if !(k.fov_deg > 0.0 && k.fov_deg < 180.0) {
+                return Err(at("fov_deg must be in (0, 180)"));
+            }
+            let position = Vec3::from(k.position);
+            if !position.is_finite() {
+                return Err(at("position must be finite"));
+            }
+            let rotation = match (&k.look_at, &k.rotation) {
+                (Some(l), None) => {
+                    if (Vec3::from(*l) - position).length() < 1e-6 {
+                        return Err(at("look_at equals position"));
+                    }
+                    None
+                }
+                (None, Some(r)) => {
+                    let m = Mat3::from_cols(r[0].into(), r[1].into(), r[2].into());
+                    if (m.determinant() - 1.0).abs() > 1e-3 {
+                        return Err(at(
+                            "rotation must be a rotation matrix (rows: right, down, forward)",
+                        ));
+                    }
+                    Some(Quat::from_mat3(&m))
+                }
+                _ => return Err(at("give exactly one of \"look_at\" and \"rotation\"")),
+            };
+            keys.push(Key {
+                time: k.time,
+                position,
+                look_at: k.look_at.map(Vec3::from),
+                rotation,
+                fov_deg: k.fov_deg,
+            });
+        }
+        if keys.iter().any(|k| k.rotation.is_some()) && keys.iter().any(|k| k.look_at.is_some()) {
+            return Err(bad(
+                "keyframes: use \"look_at\" in every keyframe or \"rotation\" in every keyframe"
+                    .into(),
+            ));
+        }
+        let mut lights = Vec::new();
+        for (i, l) in doc.lighting.iter().enumerate() {
+            if !l.time.is_finite() || (i > 0 && l.time <= doc.lighting[i - 1].time) {
+                return Err(bad(format!(
+                    "lighting[{i}]: time must be finite and increase"
+                )));
+            }
+            if !(0.0..=1.0).contains(&l.dim) {
+                return Err(bad(format!("lighting[{i}]: dim must be in [0, 1]")));
+            }
+            lights.push((l.time, l.dim, l.intensities.clone()));
+        }
+        Ok(CameraPath {
+            keys,
+            lights,
+            catmull_rom,
+        })
+    }
+
+    /// Time of the last keyframe (camera or lighting).
+    pub fn duration(&self) -> f32 {
+        let k = self.keys.last().unwrap().time;
+        self.lights.last().map_or(k, |l| l.0.max(k))
+    }
+
+    pub fn start(&self) -> f32 {
+        self.keys[0].time
+    }
+
+    /// Segment index and parameter for time t in a sorted list of times.
+    fn segment(times: &[f32], t: f32) -> (usize, f32) {
+        if t <= times[0] || times.len() == 1 {
+            return (0, 0.0);
+        }
+        let n = times.len();
+        if t >= times[n - 1] {
+            return (n - 2, 1.0);
+        }
+        let i = times.partition_point(|&x| x <= t) - 1;
+        (i, (t - times[i]) / (times[i + 1] - times[i]))
+    }
+
+    fn interp(&self, i: usize, u: f32, f: impl Fn(&Key) -> Vec3) -> Vec3 {
+        let n = self.keys.len();
+        if n == 1 {
+            return f(&self.keys[0]);
+        }
+        let p = |j: isize| f(&self.keys[j.clamp(0, n as isize - 1) as usize]);
+        let i = i as isize;
+        if self.catmull_rom {
+            catmull_rom(p(i - 1), p(i), p(i + 1), p(i + 2), u)
+        } else {
+            p(i).lerp(p(i + 1), u)
+        }
+    }
+
+    /// The camera at time t with a `width × height` image.
+    pub fn camera_at(&self, t: f32, width: u32, height: u32) -> Camera {
+        let times: Vec<f32> = self.keys.iter().map(|k| k.time).collect();
+        let (i, u) = CameraPath::segment(&times, t);
+        let j = (i + 1).min(self.keys.len() - 1);
+        let pos = self.interp(i, u, |k| k.position);
+        let fov = self.keys[i].fov_deg + (self.keys[j].fov_deg - self.keys[i].fov_deg) * u;
+        let fx = width as f32 * 0.5 / (fov.to_radians() * 0.5).tan();
+        match self.keys[0].rotation {
+            None => {
+                let target = self.interp(i, u, |k| k.look_at.unwrap());
+                Camera::look_at(pos, target, Vec3::Y, width, height, fx)
+            }
+            Some(_) => {
+                let q = self.keys[i]
+                    .rotation
+                    .unwrap()
+                    .slerp(self.keys[j].rotation.unwrap(), u);
+                Camera::from_camera_to_world(Mat3::from_quat(q), pos, width, height, fx, fx)
+            }
+        }
+    }
+
+    /// The lighting at time t (None when the path has no lighting keyframes).
+    pub fn lighting_at(&self, t: f32) -> Option<PathLighting> {
+        if self.lights.is_empty() {
+            return None;
+        }
+        let times: Vec<f32> = self.lights.iter().map(|l| l.0).collect();
+        let (i, u) = CameraPath::segment(&times, t);
+        let j = (i + 1).min(self.lights.len() - 1);
+        let (a, b) = (&self.lights[i], &self.lights[j]);
+        let mut intensities = BTreeMap::new();
+        for name in a.2.keys().chain(b.2.keys()) {
+            let x = a.2.get(name).copied().unwrap_or(0.0);
+            let y = b.2.get(name).copied().unwrap_or(0.0);
+            intensities.insert(name.clone(), x + (y - x) * u);
+        }
+        Some(PathLighting {
+            dim: a.1 + (b.1 - a.1) * u,
+            intensities,
+        })
+    }
+}

@@ -1,0 +1,220 @@
+//! `relit render`, `fly` and `dump` end to end on a tiny baked scene (the procedural test room,
+//! 6 views at 32×24, a cheap preview bake), validation on when installed.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+fn relit(args: &[&str]) -> (i32, String, String) {
+    let entry = relit_engine::gpu::load_entry().unwrap();
+    let validate = relit_engine::gpu::validation_layer_available(&entry);
+    let out = Command::new(env!("CARGO_BIN_EXE_relit"))
+        .args(args)
+        .env("RELIT_VALIDATE", if validate { "1" } else { "0" })
+        .output()
+        .expect("run relit");
+    let (code, so, se) = (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    );
+    assert!(
+        !se.contains("[vulkan validation error]"),
+        "validation errors in relit {args:?}:\n{se}"
+    );
+    (code, so, se)
+}
+
+fn ok(args: &[&str]) -> String {
+    let (code, so, se) = relit(args);
+    assert_eq!(code, 0, "relit {args:?} failed:\n{so}\n{se}");
+    so + &se
+}
+
+fn baked_tiny(name: &str) -> std::path::PathBuf {
+    let d = common::tempdir(name);
+    let s = d.join("room");
+    let sp = s.to_str().unwrap();
+    ok(&["scene", "synth", sp, "--views", "6", "--res", "32x24"]);
+    // Before the bake: a clear error that says what to run.
+    let (code, _, se) = relit(&["render", sp, "--camera", "0", "--out", "/tmp/x.png"]);
+    assert_ne!(code, 0);
+    assert!(se.contains("relit bake"), "{se}");
+    ok(&[
+        "bake",
+        sp,
+        "--quality",
+        "preview",
+        "--rays",
+        "8",
+        "--added-samples",
+        "2",
+    ]);
+    s
+}
+
+fn png(path: &Path) -> image::RgbImage {
+    image::open(path).unwrap().to_rgb8()
+}
+
+#[test]
+fn render_fly_dump_on_a_tiny_baked_scene() {
+    let s = baked_tiny("fly");
+    let sp = s.to_str().unwrap();
+    let d = s.parent().unwrap();
+    let out_png = d.join("v0.png");
+    let notice = ok(&[
+        "render",
+        sp,
+        "--camera",
+        "0",
+        "--out",
+        out_png.to_str().unwrap(),
+    ]);
+    assert!(
+        notice.contains("ULR"),
+        "the ULR fallback is announced: {notice}"
+    );
+    let img = png(&out_png);
+    assert_eq!(img.dimensions(), (32, 24));
+    let lit = img.pixels().filter(|p| p.0.iter().any(|&c| c > 8)).count();
+    assert!(lit * 2 > 32 * 24, "most pixels show the room");
+    // ULR at an input view's own camera reproduces that view: w1 = 1/|c_new - c_i|^2 makes
+    // it dominate the I_1 blend, sampled at its texel centres.
+    let exr = d.join("v0.exr");
+    ok(&[
+        "render",
+        sp,
+        "--camera",
+        "0",
+        "--out",
+        exr.to_str().unwrap(),
+        "--lighting",
+        "lamp_on_dimmed",
+        "--uncompressed",
+    ]);
+    let scene = relit_engine::scene::Scene::load(&s).unwrap();
+    let input = relit_engine::scene::image::load_rgb(&scene.views[0].image).unwrap();
+    let got = relit_engine::scene::image::load_rgb(&exr).unwrap();
+    let (mut diff, mut sum) = (0f64, 0f64);
+    for (a, b) in got.pixels.iter().zip(&input.pixels) {
+        for k in 0..3 {
+            diff += (a[k] - b[k]).abs() as f64;
+            sum += b[k].abs() as f64;
+        }
+    }
+    // Half-float maps and EXR: 1% of the mean.
+    assert!(
+        diff <= 0.01 * sum,
+        "ULR at an input camera: relative difference {}",
+        diff / sum
+    );
+
+    // A path with camera and lighting keyframes.
+    let path = d.join("path.json");
+    std::fs::write(
+        &path,
+        r#"{ "interpolation": "catmull-rom",
+             "keyframes": [
+               { "time": 0.0, "position": [0.0, 1.4, 1.2], "look_at": [0.0, 1.0, -1.0], "fov_deg": 70 },
+               { "time": 0.5, "position": [0.3, 1.4, 1.0], "look_at": [0.2, 1.0, -1.0], "fov_deg": 65 },
+               { "time": 1.0, "position": [0.5, 1.5, 0.8], "look_at": [0.4, 1.0, -1.0], "fov_deg": 60 } ],
+             "lighting": [ { "time": 0.0, "dim": 0.0 }, { "time": 1.0, "dim": 0.5, "intensities": { "lamp": 1.0 } } ] }"#,
+    )
+    .unwrap();
+    let pp = path.to_str().unwrap();
+    let (f1, f2) = (d.join("frames1"), d.join("frames2"));
+    for f in [&f1, &f2] {
+        ok(&[
+            "fly",
+            sp,
+            "--path",
+            pp,
+            "--out",
+            f.to_str().unwrap(),
+            "--res",
+            "32x24",
+            "--fps",
+            "4",
+        ]);
+    }
+    let n = std::fs::read_dir(&f1).unwrap().count();
+    assert_eq!(n, 5, "1 s at 4 fps: frames at t = 0, 0.25, …, 1");
+    for i in 0..n {
+        let name = format!("frame{i:05}.png");
+        assert_eq!(
+            std::fs::read(f1.join(&name)).unwrap(),
+            std::fs::read(f2.join(&name)).unwrap(),
+            "{name}: the same inputs give the same frames"
+        );
+    }
+    assert_ne!(
+        std::fs::read(f1.join("frame00000.png")).unwrap(),
+        std::fs::read(f1.join("frame00004.png")).unwrap(),
+        "the camera and the lighting move"
+    );
+    if Command::new("ffmpeg").arg("-version").output().is_ok() {
+        let mp4 = d.join("fly.mp4");
+        ok(&[
+            "fly",
+            sp,
+            "--path",
+            pp,
+            "--out",
+            mp4.to_str().unwrap(),
+            "--res",
+            "32x24",
+            "--fps",
+            "4",
+        ]);
+        let b = std::fs::read(&mp4).unwrap();
+        assert!(b.len() > 100 && &b[4..8] == b"ftyp", "an MP4 file");
+    }
+
+    // dump: the 66-channel input as safetensors, with the channel order in the metadata.
+    let dump = d.join("v1.safetensors");
+    ok(&["dump", sp, "--camera", "1", "--out", dump.to_str().unwrap()]);
+    let bytes = std::fs::read(&dump).unwrap();
+    let st = safetensors::SafeTensors::deserialize(&bytes).unwrap();
+    let t = st.tensor("input").unwrap();
+    assert_eq!(t.shape(), &[66, 24, 32]);
+    let v: Vec<f32> = bytemuck::pod_collect_to_vec(t.data());
+    assert!(v.iter().all(|x| x.is_finite()));
+    let (_, meta) = safetensors::SafeTensors::read_metadata(&bytes).unwrap();
+    let ch = meta
+        .metadata()
+        .as_ref()
+        .unwrap()
+        .get("relit.channels")
+        .unwrap();
+    assert!(ch.starts_with("[\"I_1.r\""), "{ch}");
+
+    // Bad input: names what is wrong.
+    let (code, _, se) = relit(&["render", sp, "--camera", "99", "--out", "/tmp/x.png"]);
+    assert_ne!(code, 0);
+    assert!(se.contains("99") && se.contains("6 views"), "{se}");
+    let (code, _, se) = relit(&["render", sp, "--camera", "0", "--out", "/tmp/x.tiff"]);
+    assert_ne!(code, 0);
+    assert!(se.contains(".exr or .png"), "{se}");
+    let (code, _, se) = relit(&[
+        "render",
+        sp,
+        "--camera",
+        "0",
+        "--mode",
+        "network",
+        "--out",
+        "/tmp/x.png",
+    ]);
+    assert_ne!(code, 0);
+    assert!(se.contains("--weights"), "{se}");
+    std::fs::write(
+        &path,
+        r#"{ "keyframes": [ { "time": 0, "position": [0,1,0], "fov_deg": 70 } ] }"#,
+    )
+    .unwrap();
+    let (code, _, se) = relit(&["fly", sp, "--path", pp, "--out", f1.to_str().unwrap()]);
+    assert_ne!(code, 0);
+    assert!(se.contains("path.json") && se.contains("look_at"), "{se}");
+}

@@ -1,0 +1,435 @@
+//! `relit render`, `relit fly`, `relit dump`: novel views of a baked scene (§4.2.2–5.2).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+use relit_engine::bake::BakeParams;
+use relit_engine::frame::{self, FrameScene, Lighting, MapFormat, Mode, Renderer};
+use relit_engine::gpu::{Gpu, GpuOptions};
+use relit_engine::net::{Network, Storage};
+use relit_engine::scene::{self, image, path::CameraPath, Camera, CameraDoc, Scene};
+
+/// Options shared by every command that renders frames.
+#[derive(clap::Args, Clone)]
+pub struct FrameArgs {
+    /// Network weights (.safetensors with the "relit.net" configuration). Without them the
+    /// frame shows the ULR composite.
+    #[arg(long)]
+    pub weights: Option<PathBuf>,
+    /// `network` (needs --weights) or `ulr` (the I_1 composite). Default: network when weights
+    /// are given, else ulr.
+    #[arg(long, value_enum)]
+    pub mode: Option<ModeArg>,
+    /// Which bake to read (default: the final bake if complete, else the preview bake).
+    #[arg(long, value_enum)]
+    pub quality: Option<crate::Quality>,
+    /// Element type of the network's tensors in device memory.
+    #[arg(long, value_enum, default_value = "f16")]
+    pub storage: crate::StorageArg,
+    /// Keep the per-view maps uncompressed (RGBA16F) instead of BC6H.
+    #[arg(long)]
+    pub uncompressed: bool,
+    /// Exposure (a linear scale) of the display transform (PNG, video, screen).
+    #[arg(long, default_value_t = 1.0)]
+    pub exposure: f32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModeArg {
+    Network,
+    Ulr,
+}
+
+/// The best complete bake of `scene` (restricted to a quality preset's sample counts when
+/// `quality` is given).
+pub fn find_bake(scene: &Scene, quality: Option<crate::Quality>) -> Result<BakeParams> {
+    let preset = quality.map(|q| match q {
+        crate::Quality::Final => BakeParams::final_quality(),
+        crate::Quality::Preview => BakeParams::preview(),
+    });
+    relit_engine::bake::run::complete_bakes(scene)?
+        .into_iter()
+        .find(|p| {
+            preset.as_ref().is_none_or(|q| {
+                (q.irradiance_samples, q.added_samples, q.bounces)
+                    == (p.irradiance_samples, p.added_samples, p.bounces)
+            })
+        })
+        .with_context(|| {
+            format!(
+                "{}: no complete bake found; run `relit bake {} --quality preview` (or final) first",
+                scene.root.display(),
+                scene.root.display()
+            )
+        })
+}
+
+/// Resolves a camera: a view index, a view or test-view name, or a camera JSON file (the
+/// `camera` object of scene.json). `res` rescales the intrinsics.
+pub fn resolve_camera(scene: &Scene, spec: &str, res: Option<(u32, u32)>) -> Result<Camera> {
+    let cam = if let Ok(i) = spec.parse::<usize>() {
+        scene
+            .views
+            .get(i)
+            .map(|v| v.camera.clone())
+            .with_context(|| format!("--camera {i}: the scene has {} views", scene.views.len()))?
+    } else if let Some(v) = scene.views.iter().find(|v| v.name == spec) {
+        v.camera.clone()
+    } else if let Some(t) = scene
+        .synthetic
+        .as_ref()
+        .and_then(|s| s.test_views.iter().find(|t| t.name == spec))
+    {
+        t.camera
+            .to_camera(&scene.root.join(scene::SCENE_FILE), &t.name)?
+    } else if Path::new(spec).is_file() {
+        let text = std::fs::read_to_string(spec).with_context(|| format!("reading {spec}"))?;
+        let doc: CameraDoc = serde_json::from_str(&text).map_err(|e| {
+            anyhow::anyhow!("{spec}: not a camera (the scene.json camera object): {e}")
+        })?;
+        doc.to_camera(Path::new(spec), "camera")?
+    } else {
+        bail!("--camera {spec}: not a view index, a view or test-view name, or a camera JSON file");
+    };
+    Ok(match res {
+        Some((w, h)) => rescale(&cam, w, h),
+        None => cam,
+    })
+}
+
+/// The same camera with a `w × h` image (intrinsics scaled).
+pub fn rescale(c: &Camera, w: u32, h: u32) -> Camera {
+    let (sx, sy) = (w as f32 / c.width as f32, h as f32 / c.height as f32);
+    Camera {
+        width: w,
+        height: h,
+        fx: c.fx * sx,
+        fy: c.fy * sy,
+        cx: c.cx * sx,
+        cy: c.cy * sy,
+        ..c.clone()
+    }
+}
+
+/// Opens the scene's bake on the device with the network (when weights are given).
+pub fn open_renderer(gpu: &Arc<Gpu>, scene: &Scene, a: &FrameArgs) -> Result<(Renderer, Mode)> {
+    let params = find_bake(scene, a.quality)?;
+    let storage: Storage = a.storage.into();
+    let format = if a.uncompressed || !gpu.caps.bc6h_sampled_linear {
+        MapFormat::Rgba16f
+    } else {
+        MapFormat::Bc6h
+    };
+    let fs = FrameScene::load(gpu, scene, &params, format)?;
+    let net = match &a.weights {
+        Some(w) => Some(Network::load(gpu, w, storage)?),
+        None => None,
+    };
+    let mode = match (a.mode, &net) {
+        (Some(ModeArg::Network), None) => {
+            bail!("--mode network needs --weights FILE.safetensors (no trained model ships yet)")
+        }
+        (Some(ModeArg::Ulr), _) => Mode::Ulr,
+        (_, Some(_)) => Mode::Network,
+        (None, None) => {
+            eprintln!(
+                "notice: no network weights given (--weights); rendering the ULR baseline (the I_1 composite)"
+            );
+            Mode::Ulr
+        }
+    };
+    Ok((Renderer::new(gpu, fs, net, storage)?, mode))
+}
+
+fn lighting(scene: &Scene, preset: Option<&str>) -> Result<Lighting> {
+    Ok(match preset {
+        Some(p) => Lighting::preset(scene, p)?,
+        None => Lighting::original(scene),
+    })
+}
+
+fn write_frame(r: &Renderer, out: &Path) -> Result<()> {
+    let b = r.buffers_ref().context("no frame")?;
+    match out.extension().and_then(|e| e.to_str()) {
+        Some("exr") => {
+            let hdr = r.hdr()?;
+            let img = relit_engine::scene::RgbImage {
+                width: b.width,
+                height: b.height,
+                pixels: hdr.iter().map(|p| [p[0], p[1], p[2]]).collect(),
+            };
+            image::write_exr(out, &img)?;
+        }
+        Some("png") => image::write_png_rgba8(out, b.width, b.height, &r.ldr()?)?,
+        _ => bail!("{}: expected a .exr or .png output", out.display()),
+    }
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+pub fn render(
+    opts: &GpuOptions,
+    dir: &Path,
+    camera: &str,
+    res: Option<(u32, u32)>,
+    preset: Option<&str>,
+    out: &Path,
+    a: &FrameArgs,
+) -> Result<()> {
+    let scene = Scene::load(dir)?;
+    let cam = resolve_camera(&scene, camera, res)?;
+    let light = lighting(&scene, preset)?;
+    let gpu = crate::open_gpu(opts)?;
+    let (mut r, mode) = open_renderer(&gpu, &scene, a)?;
+    r.render(&cam, &light, mode, a.exposure, None)?;
+    write_frame(&r, out)?;
+    println!("{}: {}x{} ({mode:?})", out.display(), cam.width, cam.height);
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+pub fn fly(
+    opts: &GpuOptions,
+    dir: &Path,
+    path: &Path,
+    out: &Path,
+    res: (u32, u32),
+    fps: f32,
+    a: &FrameArgs,
+) -> Result<()> {
+    let scene = Scene::load(dir)?;
+    let cp = CameraPath::load(path)?;
+    if !(fps > 0.0 && fps <= 240.0) {
+        bail!("--fps {fps}: expected a value in (0, 240]");
+    }
+    let gpu = crate::open_gpu(opts)?;
+    let (mut r, mode) = open_renderer(&gpu, &scene, a)?;
+    let (t0, t1) = (cp.start(), cp.duration());
+    let n = ((t1 - t0) * fps).floor() as u64 + 1;
+    let video = out.extension().is_some_and(|e| e == "mp4");
+    let (w, h) = res;
+    let tmp = scene::temp_path(out);
+    let mut ffmpeg = if video {
+        if w % 2 != 0 || h % 2 != 0 {
+            bail!("--res {w}x{h}: MP4 (yuv420p) needs even sizes");
+        }
+        let child = std::process::Command::new("ffmpeg")
+            .args([
+                "-loglevel",
+                "error",
+                "-y",
+                "-f",
+                "rawvideo",
+                "-pix_fmt",
+                "rgba",
+                "-s",
+            ])
+            .arg(format!("{w}x{h}"))
+            .args([
+                "-r",
+                &fps.to_string(),
+                "-i",
+                "-",
+                "-c:v",
+                "libx264",
+                "-preset",
+                "medium",
+            ])
+            .args([
+                "-crf", "18", "-pix_fmt", "yuv420p", "-threads", "1", "-f", "mp4",
+            ])
+            .arg(&tmp)
+            .stdin(std::process::Stdio::piped())
+            .spawn()
+            .context("starting ffmpeg (install it, or give a directory to write PNG frames)")?;
+        Some(child)
+    } else {
+        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        None
+    };
+    let bar = indicatif::ProgressBar::new(n);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{prefix} {bar:40} {pos}/{len} {msg} ETA {eta}")
+            .unwrap(),
+    );
+    bar.set_prefix("fly");
+    let base = Lighting::original(&scene);
+    let t_start = std::time::Instant::now();
+    for i in 0..n {
+        let t = t0 + i as f32 / fps;
+        let cam = cp.camera_at(t, w, h);
+        let light = match cp.lighting_at(t) {
+            Some(l) => Lighting::from_path(&scene, &l, path)?,
+            None => base.clone(),
+        };
+        r.render(&cam, &light, mode, a.exposure, None)?;
+        match &mut ffmpeg {
+            Some(child) => {
+                let px = r.ldr()?;
+                child
+                    .stdin
+                    .as_mut()
+                    .unwrap()
+                    .write_all(&px)
+                    .context("writing a frame to ffmpeg")?;
+            }
+            None => image::write_png_rgba8(&out.join(format!("frame{i:05}.png")), w, h, &r.ldr()?)?,
+        }
+        bar.inc(1);
+        bar.set_message(format!(
+            "{:.2} fps",
+            (i + 1) as f64 / t_start.elapsed().as_secs_f64()
+        ));
+    }
+    bar.finish();
+    if let Some(mut child) = ffmpeg {
+        drop(child.stdin.take());
+        let st = child.wait()?;
+        if !st.success() {
+            let _ = std::fs::remove_file(&tmp);
+            bail!("ffmpeg failed ({st}) writing {}", out.display());
+        }
+        std::fs::rename(&tmp, out).with_context(|| format!("writing {}", out.display()))?;
+    }
+    println!(
+        "{}: {n} frames at {w}x{h}, {fps} fps ({mode:?}), {:.1} s",
+        out.display(),
+        t_start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// The ground truth of a synthetic scene for `camera` under `light`, mixed linearly from the
+/// per-condition renders: (diffuse, total), when every needed render exists.
+fn ground_truth(
+    scene: &Scene,
+    camera: &str,
+    light: &Lighting,
+) -> Result<Option<(Vec<f32>, Vec<f32>)>> {
+    let Some(syn) = &scene.synthetic else {
+        return Ok(None);
+    };
+    let gt = scene.root.join(&syn.ground_truth);
+    let names = frame::added_lights(scene);
+    let mut terms = vec![("original".to_string(), 1.0 - light.alpha_dim)];
+    for (n, &s) in names.iter().zip(&light.intensities) {
+        if s != 0.0 {
+            terms.push((n.clone(), s));
+        }
+    }
+    let mut acc: Option<(Vec<f32>, Vec<f32>)> = None;
+    for (cond, wgt) in terms {
+        let d = gt.join(&cond).join(format!("{camera}.diffuse.exr"));
+        let t = gt.join(&cond).join(format!("{camera}.total.exr"));
+        if !d.exists() || !t.exists() {
+            return Ok(None);
+        }
+        let (d, t) = (image::load_rgb(&d)?, image::load_rgb(&t)?);
+        let planar = |im: &relit_engine::scene::RgbImage| -> Vec<f32> {
+            (0..3)
+                .flat_map(|c| im.pixels.iter().map(move |p| p[c]))
+                .collect()
+        };
+        let (pd, pt) = (planar(&d), planar(&t));
+        match &mut acc {
+            None => {
+                acc = Some((
+                    pd.iter().map(|v| v * wgt).collect(),
+                    pt.iter().map(|v| v * wgt).collect(),
+                ))
+            }
+            Some((ad, at)) => {
+                if ad.len() != pd.len() {
+                    bail!(
+                        "{}: ground-truth sizes differ between conditions",
+                        gt.display()
+                    );
+                }
+                ad.iter_mut().zip(&pd).for_each(|(a, v)| *a += v * wgt);
+                at.iter_mut().zip(&pt).for_each(|(a, v)| *a += v * wgt);
+            }
+        }
+    }
+    Ok(acc)
+}
+
+pub fn dump(
+    opts: &GpuOptions,
+    dir: &Path,
+    camera: &str,
+    preset: Option<&str>,
+    out: &Path,
+    a: &FrameArgs,
+) -> Result<()> {
+    use safetensors::tensor::TensorView;
+    let scene = Scene::load(dir)?;
+    let cam = resolve_camera(&scene, camera, None)?;
+    let light = lighting(&scene, preset)?;
+    let gpu = crate::open_gpu(opts)?;
+    let mut fa = a.clone();
+    fa.weights = None;
+    fa.mode = Some(ModeArg::Ulr);
+    fa.storage = crate::StorageArg::F32;
+    let (mut r, _) = open_renderer(&gpu, &scene, &fa)?;
+    r.render(&cam, &light, Mode::Ulr, 1.0, None)?;
+    let input = r.buffers_ref().unwrap().input.download_chw()?;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let mut tensors: Vec<(String, Vec<u8>, Vec<usize>)> = vec![(
+        "input".into(),
+        bytemuck::cast_slice(&input).to_vec(),
+        vec![66, h, w],
+    )];
+    let gt = ground_truth(&scene, camera, &light)?;
+    if let Some((d, t)) = &gt {
+        if d.len() != 3 * w * h {
+            bail!("ground truth of {camera} is not {w}x{h}");
+        }
+        tensors.push((
+            "target_diffuse".into(),
+            bytemuck::cast_slice(d).to_vec(),
+            vec![3, h, w],
+        ));
+        tensors.push((
+            "target_total".into(),
+            bytemuck::cast_slice(t).to_vec(),
+            vec![3, h, w],
+        ));
+    }
+    let views: Vec<(String, TensorView)> = tensors
+        .iter()
+        .map(|(n, b, s)| {
+            Ok((
+                n.clone(),
+                TensorView::new(safetensors::Dtype::F32, s.clone(), b)?,
+            ))
+        })
+        .collect::<Result<_>>()?;
+    let mut meta = std::collections::HashMap::new();
+    meta.insert(
+        "relit.channels".to_string(),
+        serde_json::to_string(&frame::features::channel_names())?,
+    );
+    meta.insert("relit.camera".to_string(), camera.to_string());
+    meta.insert(
+        "relit.lighting".to_string(),
+        serde_json::json!({"alpha_dim": light.alpha_dim, "intensities": frame::added_lights(&scene).iter().zip(&light.intensities).collect::<Vec<_>>()}).to_string(),
+    );
+    meta.insert(
+        "relit.targets".to_string(),
+        "linear radiance; target_total = diffuse + glossy".to_string(),
+    );
+    let bytes = safetensors::serialize(views, Some(meta))?;
+    scene::write_atomic(out, &bytes)?;
+    println!(
+        "{}: input 66x{h}x{w}{}",
+        out.display(),
+        if gt.is_some() {
+            ", ground-truth targets"
+        } else {
+            " (no ground truth for this camera)"
+        }
+    );
+    Ok(())
+}
