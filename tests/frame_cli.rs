@@ -218,3 +218,73 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
     assert_ne!(code, 0);
     assert!(se.contains("path.json") && se.contains("look_at"), "{se}");
 }
+
+/// `relit view` under Xvfb: the window's last frame, read back from the swapchain image,
+/// equals `relit render` of the same camera (the viewer blits 1:1 at its start size).
+#[test]
+fn view_shows_the_scene_in_a_window_under_xvfb() {
+    assert!(
+        Command::new("xvfb-run").arg("--help").output().is_ok(),
+        "xvfb-run is missing: run tools/setup.sh (Debian package xvfb)"
+    );
+    let s = baked_tiny("view");
+    let sp = s.to_str().unwrap();
+    let d = s.parent().unwrap();
+    let (shot, want) = (d.join("shot.png"), d.join("render.png"));
+    let entry = relit_engine::gpu::load_entry().unwrap();
+    let validate = relit_engine::gpu::validation_layer_available(&entry);
+    let out = Command::new("xvfb-run")
+        .args([
+            "-a",
+            "-s",
+            "-screen 0 640x480x24",
+            env!("CARGO_BIN_EXE_relit"),
+        ])
+        .args([
+            "view",
+            sp,
+            "--res",
+            "64x48",
+            "--camera",
+            "0",
+            "--frames",
+            "3",
+            "--screenshot",
+        ])
+        .arg(&shot)
+        .env("RELIT_VALIDATE", if validate { "1" } else { "0" })
+        .output()
+        .unwrap();
+    let se = String::from_utf8_lossy(&out.stderr);
+    let so = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "relit view failed:\n{so}\n{se}");
+    assert!(!se.contains("[vulkan validation error]"), "{se}");
+    assert!(so.contains("read back from the window"), "{so}");
+    ok(&[
+        "render",
+        sp,
+        "--camera",
+        "0",
+        "--res",
+        "64x48",
+        "--out",
+        want.to_str().unwrap(),
+    ]);
+    let (a, b) = (png(&shot), png(&want));
+    assert_eq!(a.dimensions(), (64, 48));
+    let lit = a.pixels().filter(|p| p.0.iter().any(|&c| c > 8)).count();
+    assert!(
+        lit * 2 > 64 * 48,
+        "the window shows the room, not a blank frame"
+    );
+    let worst = a
+        .pixels()
+        .zip(b.pixels())
+        .flat_map(|(p, q)| (0..3).map(move |k| (p.0[k] as i32 - q.0[k] as i32).abs()))
+        .max()
+        .unwrap();
+    assert!(
+        worst <= 1,
+        "window and render differ by up to {worst} code values"
+    );
+}

@@ -306,6 +306,7 @@ fn device_choice_errors_name_the_devices() {
     let err = Gpu::new(&GpuOptions {
         device: DeviceChoice::Name("no-such-gpu-xyz".into()),
         validation: false,
+        ..Default::default()
     })
     .err()
     .expect("must fail");
@@ -313,6 +314,7 @@ fn device_choice_errors_name_the_devices() {
     let err = Gpu::new(&GpuOptions {
         device: DeviceChoice::Index(99),
         validation: false,
+        ..Default::default()
     })
     .err()
     .expect("must fail");

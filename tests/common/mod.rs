@@ -16,6 +16,7 @@ pub fn gpu() -> Arc<Gpu> {
     Gpu::new(&GpuOptions {
         device: DeviceChoice::from_env(),
         validation,
+        ..Default::default()
     })
     .unwrap_or_else(|e| panic!("cannot open a Vulkan device: {e}"))
 }

@@ -46,6 +46,24 @@ pub enum BenchCmd {
         #[arg(long, value_enum, default_value = "final")]
         quality: crate::Quality,
     },
+    /// Whole frames of a baked scene along its test path (or its views): GPU time per pass
+    /// (G-buffer, reproject, irradiance, target mirror, features, each network stage, output),
+    /// fps median and p95. Without --weights the network has random weights of --width.
+    Frame {
+        scene: PathBuf,
+        #[arg(long, default_value = "256x192", value_parser = crate::parse_res)]
+        res: (u32, u32),
+        /// Timed frames after one warm-up frame.
+        #[arg(long, default_value_t = 5)]
+        frames: u32,
+        /// Network width when no weights are given.
+        #[arg(long, default_value_t = 66)]
+        width: u32,
+        #[arg(long)]
+        json: Option<PathBuf>,
+        #[command(flatten)]
+        frame: crate::render::FrameArgs,
+    },
     /// The network alone (§5.1, random weights): ms per inference, GFLOP/s, per-stage times.
     /// `tools/train/bench_torch.py` times the same network with PyTorch on the CPU.
     Net {
@@ -81,6 +99,14 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             quality,
         } => bake_bench(scene, *views, *quality, opts),
         BenchCmd::Bc6h { cache, maps } => bc6h_bench(cache, *maps, opts),
+        BenchCmd::Frame {
+            scene,
+            res,
+            frames,
+            width,
+            json,
+            frame,
+        } => frame_bench(scene, *res, *frames, *width, json.as_ref(), frame, opts),
         BenchCmd::Net {
             width,
             res,
@@ -497,6 +523,150 @@ fn net_bench(
             "backend": format!("{:?}", net.kernels.backend),
             "gflop": flops * 1e-9, "ms": total, "gflops": flops * 1e-9 / (total * 1e-3),
             "stages_ms": stages.iter().map(|(l, v)| (l.clone(), median(v.clone()))).collect::<std::collections::BTreeMap<_, _>>(),
+        });
+        relit_engine::scene::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[((v.len() - 1) as f64 * q).round() as usize]
+}
+
+#[allow(clippy::too_many_arguments)]
+fn frame_bench(
+    dir: &std::path::Path,
+    (w, h): (u32, u32),
+    frames: u32,
+    width: u32,
+    json: Option<&PathBuf>,
+    fa: &crate::render::FrameArgs,
+    opts: &GpuOptions,
+) -> Result<()> {
+    use relit_engine::frame::{Lighting, Mode, Renderer};
+    use relit_engine::net::{NetConfig, NetKernels, Network, RandomParams};
+    let scene = relit_engine::scene::Scene::load(dir)?;
+    let gpu = crate::open_gpu(opts)?;
+    let mut args = fa.clone();
+    let random_net = args.weights.is_none() && args.mode != Some(crate::render::ModeArg::Ulr);
+    if random_net {
+        args.mode = Some(crate::render::ModeArg::Ulr);
+    }
+    let (r, mut mode) = crate::render::open_renderer(&gpu, &scene, &args)?;
+    let mut r = if random_net {
+        let storage = args.storage.into();
+        let net = Network::from_params(
+            NetKernels::new(&gpu, storage)?,
+            NetConfig::paper(width),
+            &RandomParams(1),
+        )?;
+        mode = Mode::Network;
+        Renderer::new(&gpu, r.scene, Some(net), storage)?
+    } else {
+        r
+    };
+    // Cameras: the synthetic test path when there is one, else the input views.
+    let path = scene
+        .synthetic
+        .as_ref()
+        .map(|s| scene.root.join(&s.test_path))
+        .filter(|p| p.exists());
+    let cams: Vec<relit_engine::scene::Camera> = match &path {
+        Some(p) => {
+            let cp = relit_engine::scene::path::CameraPath::load(p)?;
+            let n = frames.max(1) + 1;
+            (0..n)
+                .map(|i| {
+                    cp.camera_at(
+                        cp.start() + (cp.duration() - cp.start()) * i as f32 / n as f32,
+                        w,
+                        h,
+                    )
+                })
+                .collect()
+        }
+        None => scene
+            .views
+            .iter()
+            .map(|v| crate::render::rescale(&v.camera, w, h))
+            .collect(),
+    };
+    let light = match scene.presets.first() {
+        Some(p) => Lighting::preset(&scene, &p.name)?,
+        None => Lighting::original(&scene),
+    };
+    println!("device: {}", gpu.caps.name);
+    println!(
+        "scene: {} ({} views), {w}x{h}, mode {mode:?}{}, {:?} storage, {:?} maps",
+        dir.display(),
+        scene.views.len(),
+        match (&r.net, random_net) {
+            (Some(n), true) => format!(
+                " (random weights, width {}, {:?} kernels)",
+                n.config.width, n.kernels.backend
+            ),
+            (Some(n), false) => format!(
+                " (width {}, {:?} kernels)",
+                n.config.width, n.kernels.backend
+            ),
+            _ => String::new(),
+        },
+        r.storage,
+        r.scene.maps.format
+    );
+    let t0 = Instant::now();
+    r.render(&cams[0], &light, mode, 1.0, None)?;
+    println!(
+        "warm-up frame (includes shader compilation): {:.2} s",
+        t0.elapsed().as_secs_f64()
+    );
+    let mut stages: Vec<(String, Vec<f64>)> = Vec::new();
+    let (mut totals, mut walls) = (Vec::new(), Vec::new());
+    for i in 0..frames.max(1) as usize {
+        let cam = &cams[(i + 1) % cams.len()];
+        let mut timer = Timer::new(&gpu, 64)?;
+        let tw = Instant::now();
+        r.render(cam, &light, mode, 1.0, Some(&mut timer))?;
+        walls.push(tw.elapsed().as_secs_f64() * 1e3);
+        let spans = timer.read()?;
+        totals.push(spans.iter().map(|s| s.1).sum::<f64>());
+        for (label, ms) in spans {
+            match stages.iter_mut().find(|s| s.0 == label) {
+                Some(s) => s.1.push(ms),
+                None => stages.push((label, vec![ms])),
+            }
+        }
+    }
+    println!("{:<22} {:>10} {:>10}", "pass", "median ms", "p95 ms");
+    for (label, v) in &stages {
+        println!(
+            "{:<22} {:>10.2} {:>10.2}",
+            label,
+            median(v.clone()),
+            percentile(v.clone(), 0.95)
+        );
+    }
+    let (gm, gp) = (median(totals.clone()), percentile(totals.clone(), 0.95));
+    let (wm, wp) = (median(walls.clone()), percentile(walls.clone(), 0.95));
+    println!(
+        "GPU total: {gm:.1} ms median, {gp:.1} ms p95 -> {:.2} fps median, {:.2} fps p95",
+        1e3 / gm,
+        1e3 / gp
+    );
+    println!(
+        "wall (submit to readable): {wm:.1} ms median, {wp:.1} ms p95 -> {:.2} fps median",
+        1e3 / wm
+    );
+    if let Some(path) = json {
+        let doc = serde_json::json!({
+            "device": gpu.caps.name, "scene": dir.display().to_string(), "res": [w, h],
+            "mode": format!("{mode:?}"), "storage": format!("{:?}", r.storage),
+            "network_width": r.net.as_ref().map(|n| n.config.width),
+            "frames": frames,
+            "passes_ms_median": stages.iter().map(|(l, v)| (l.clone(), median(v.clone()))).collect::<std::collections::BTreeMap<_, _>>(),
+            "gpu_ms": { "median": gm, "p95": gp }, "wall_ms": { "median": wm, "p95": wp },
+            "fps": { "median": 1e3 / gm, "p95": 1e3 / gp },
         });
         relit_engine::scene::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     }

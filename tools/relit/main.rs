@@ -2,6 +2,7 @@
 
 mod bench;
 mod render;
+mod view;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -104,6 +105,31 @@ enum Cmd {
         lighting: Option<String>,
         #[arg(long)]
         out: PathBuf,
+        #[command(flatten)]
+        frame: render::FrameArgs,
+    },
+    /// The interactive viewer (winit window, Vulkan swapchain). Keys: WASD/QE move, drag or
+    /// arrows look, 0–9 lighting presets, Tab/+/− light intensity, [ ] α_dim, M network/ULR,
+    /// P screenshot, F11 fullscreen, Esc quit.
+    View {
+        scene: PathBuf,
+        /// Render resolution WxH (the window starts at this size; frames are scaled to it).
+        #[arg(long, default_value = "256x192", value_parser = parse_res)]
+        res: (u32, u32),
+        #[arg(long)]
+        fullscreen: bool,
+        /// Exit after N frames (with --screenshot: save the last one).
+        #[arg(long)]
+        frames: Option<u64>,
+        /// Save the window's last frame here (PNG) when exiting after --frames.
+        #[arg(long)]
+        screenshot: Option<PathBuf>,
+        /// Start camera: a view index, a view or test-view name, or a camera JSON file.
+        #[arg(long)]
+        camera: Option<String>,
+        /// Start lighting preset.
+        #[arg(long)]
+        lighting: Option<String>,
         #[command(flatten)]
         frame: render::FrameArgs,
     },
@@ -520,6 +546,28 @@ fn main() {
                 .map_err(Into::into)
         }
         Cmd::Bench { cmd } => bench::run(cmd, &opts),
+        Cmd::View {
+            scene,
+            res,
+            fullscreen,
+            frames,
+            screenshot,
+            camera,
+            lighting,
+            frame,
+        } => view::view(
+            &opts,
+            view::ViewArgs {
+                scene: scene.clone(),
+                res: *res,
+                fullscreen: *fullscreen,
+                frames: *frames,
+                screenshot: screenshot.clone(),
+                camera: camera.clone(),
+                lighting: lighting.clone(),
+                frame: frame.clone(),
+            },
+        ),
         Cmd::Render {
             scene,
             camera,

@@ -50,6 +50,10 @@ pub struct GpuOptions {
     pub device: DeviceChoice,
     /// Turn on the Khronos validation layer (errors if it is not installed).
     pub validation: bool,
+    /// Extra instance extensions (a window system's surface extensions, for `relit view`).
+    pub instance_extensions: Vec<&'static CStr>,
+    /// Enable VK_KHR_swapchain (presenting to a window).
+    pub swapchain: bool,
 }
 
 impl Default for GpuOptions {
@@ -58,6 +62,8 @@ impl Default for GpuOptions {
         GpuOptions {
             device: DeviceChoice::from_env(),
             validation: std::env::var("RELIT_VALIDATE").is_ok_and(|v| v == "1"),
+            instance_extensions: Vec::new(),
+            swapchain: false,
         }
     }
 }
@@ -356,7 +362,11 @@ fn type_rank(t: vk::PhysicalDeviceType) -> u32 {
     }
 }
 
-fn create_instance(entry: &ash::Entry, validation: bool) -> Result<ash::Instance> {
+fn create_instance(
+    entry: &ash::Entry,
+    validation: bool,
+    extra: &[&'static CStr],
+) -> Result<ash::Instance> {
     let app = vk::ApplicationInfo::default()
         .application_name(c"relit")
         .engine_name(c"relit")
@@ -366,11 +376,10 @@ fn create_instance(entry: &ash::Entry, validation: bool) -> Result<ash::Instance
     } else {
         vec![]
     };
-    let exts = if validation {
-        vec![ash::ext::debug_utils::NAME.as_ptr()]
-    } else {
-        vec![]
-    };
+    let mut exts: Vec<*const std::ffi::c_char> = extra.iter().map(|e| e.as_ptr()).collect();
+    if validation {
+        exts.push(ash::ext::debug_utils::NAME.as_ptr());
+    }
     let info = vk::InstanceCreateInfo::default()
         .application_info(&app)
         .enabled_layer_names(&layers)
@@ -381,7 +390,7 @@ fn create_instance(entry: &ash::Entry, validation: bool) -> Result<ash::Instance
 /// Every Vulkan device on this machine with its capabilities (for `relit info`).
 pub fn list_devices() -> Result<Vec<Caps>> {
     let entry = load_entry()?;
-    let instance = create_instance(&entry, false)?;
+    let instance = create_instance(&entry, false, &[])?;
     let out = (|| {
         let pds = unsafe { instance.enumerate_physical_devices() }.vk("enumerate devices")?;
         pds.iter()
@@ -402,7 +411,7 @@ impl Gpu {
                     .into(),
             ));
         }
-        let instance = create_instance(&entry, opts.validation)?;
+        let instance = create_instance(&entry, opts.validation, &opts.instance_extensions)?;
         let validation_errors = Box::new(AtomicU32::new(0));
         let debug = if opts.validation {
             let du = ash::ext::debug_utils::Instance::new(&entry, &instance);
@@ -521,6 +530,9 @@ impl Gpu {
             REQUIRED_EXTENSIONS.iter().map(|e| e.as_ptr()).collect();
         if !caps.coop_matrix.is_empty() {
             ext_names.push(ash::khr::cooperative_matrix::NAME.as_ptr());
+        }
+        if opts.swapchain {
+            ext_names.push(ash::khr::swapchain::NAME.as_ptr());
         }
         let mut f11 =
             vk::PhysicalDeviceVulkan11Features::default().storage_buffer16_bit_access(true);

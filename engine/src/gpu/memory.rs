@@ -14,6 +14,17 @@ impl Gpu {
     /// Records commands with `f`, submits them and waits. Simple and synchronous: the engine's
     /// passes are long compute dispatches, so per-submit overhead does not matter.
     pub fn submit<R>(&self, f: impl FnOnce(vk::CommandBuffer) -> R) -> Result<R> {
+        self.submit_sync(&[], &[], f)
+    }
+
+    /// [`Gpu::submit`] that waits on `wait` semaphores (at the given stages) and signals
+    /// `signal` (presenting to a swapchain).
+    pub fn submit_sync<R>(
+        &self,
+        wait: &[(vk::Semaphore, vk::PipelineStageFlags)],
+        signal: &[vk::Semaphore],
+        f: impl FnOnce(vk::CommandBuffer) -> R,
+    ) -> Result<R> {
         let pool = self
             .cmd_pool
             .lock()
@@ -40,7 +51,12 @@ impl Gpu {
                     .create_fence(&vk::FenceCreateInfo::default(), None)
                     .vk("create fence")?;
                 let cmds = [cmd];
-                let submit = vk::SubmitInfo::default().command_buffers(&cmds);
+                let (ws, wst): (Vec<_>, Vec<_>) = wait.iter().copied().unzip();
+                let submit = vk::SubmitInfo::default()
+                    .command_buffers(&cmds)
+                    .wait_semaphores(&ws)
+                    .wait_dst_stage_mask(&wst)
+                    .signal_semaphores(signal);
                 let waited = d
                     .queue_submit(self.queue, &[submit], fence)
                     .and_then(|_| d.wait_for_fences(&[fence], true, u64::MAX));
