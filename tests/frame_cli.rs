@@ -71,6 +71,8 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
         "0",
         "--out",
         out_png.to_str().unwrap(),
+        "--maps",
+        "bc6h",
     ]);
     assert!(
         notice.contains("ULR"),

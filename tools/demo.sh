@@ -1,11 +1,26 @@
 #!/usr/bin/env bash
-# Sets the machine up (tools/setup.sh) and runs the main job on the bundled scene: device
-# report, a full check of the demo scene, and its bake (preview quality, ~10 min on 2 cores;
-# a second run finds everything cached). Rendering and flythroughs come with the frame passes.
+# The main job on the bundled scene: sets the machine up (tools/setup.sh), reports the device,
+# checks and bakes scenes/demo_room (preview quality, ~10–16 min on 2 cores; a second run finds
+# everything cached), renders one novel view and records the flythrough of the scene's test
+# path (camera and lighting keyframes) to out/demo_room_fly.mp4.
+#
+# With trained weights at tools/train/weights/relit.safetensors the frames come from the
+# network; none ship yet, so the default is the ULR baseline (the I_1 composite), and relit
+# says so.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
 cargo build --release --bin relit
-./target/release/relit info
-./target/release/relit scene check scenes/demo_room
-./target/release/relit bake scenes/demo_room --quality preview
+R=./target/release/relit
+S=scenes/demo_room
+$R info
+$R scene check $S
+$R bake $S --quality preview
+WEIGHTS=()
+if [ -f tools/train/weights/relit.safetensors ]; then
+  WEIGHTS=(--weights tools/train/weights/relit.safetensors)
+fi
+mkdir -p out
+$R render $S --camera test003 --lighting extra0_on_dimmed --out out/demo_room_test003.png "${WEIGHTS[@]}"
+$R fly $S --path $S/paths/test.json --out out/demo_room_fly.mp4 --res 256x192 --fps 12 "${WEIGHTS[@]}"
+echo "main job done: out/demo_room_fly.mp4, out/demo_room_test003.png"

@@ -28,12 +28,21 @@ pub struct FrameArgs {
     /// Element type of the network's tensors in device memory.
     #[arg(long, value_enum, default_value = "f16")]
     pub storage: crate::StorageArg,
-    /// Keep the per-view maps uncompressed (RGBA16F) instead of BC6H.
-    #[arg(long)]
-    pub uncompressed: bool,
+    /// Storage of the per-view maps: `bc6h` (1 byte/texel), `rgba16f` (8), or `auto`: BC6H on
+    /// GPUs, RGBA16F on CPU devices such as lavapipe, which decode BC6H in software at every
+    /// sample (measured: 4× slower frames on the demo scene).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub maps: MapsArg,
     /// Exposure (a linear scale) of the display transform (PNG, video, screen).
     #[arg(long, default_value_t = 1.0)]
     pub exposure: f32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MapsArg {
+    Auto,
+    Bc6h,
+    Rgba16f,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -117,10 +126,15 @@ pub fn rescale(c: &Camera, w: u32, h: u32) -> Camera {
 pub fn open_renderer(gpu: &Arc<Gpu>, scene: &Scene, a: &FrameArgs) -> Result<(Renderer, Mode)> {
     let params = find_bake(scene, a.quality)?;
     let storage: Storage = a.storage.into();
-    let format = if a.uncompressed || !gpu.caps.bc6h_sampled_linear {
-        MapFormat::Rgba16f
-    } else {
-        MapFormat::Bc6h
+    let cpu_device = gpu.caps.device_type == relit_engine::gpu::vk::PhysicalDeviceType::CPU;
+    let format = match a.maps {
+        MapsArg::Bc6h if !gpu.caps.bc6h_sampled_linear => {
+            bail!("--maps bc6h: the device cannot sample BC6H textures with linear filtering")
+        }
+        MapsArg::Bc6h => MapFormat::Bc6h,
+        MapsArg::Rgba16f => MapFormat::Rgba16f,
+        MapsArg::Auto if cpu_device || !gpu.caps.bc6h_sampled_linear => MapFormat::Rgba16f,
+        MapsArg::Auto => MapFormat::Bc6h,
     };
     let fs = FrameScene::load(gpu, scene, &params, format)?;
     let net = match &a.weights {

@@ -60,6 +60,11 @@ impl Timer {
             )));
         }
         self.labels.push(label.to_string());
+        // Span boundaries are full barriers on both sides of the timestamp, so a span covers
+        // exactly the commands inside it. lavapipe needs both: it bins a timestamp and takes
+        // the time only when that bin is flushed, which a barrier does; without the second
+        // barrier the time would be taken after the next (synchronous) compute dispatch.
+        super::full_barrier(&self.gpu, cmd);
         unsafe {
             self.gpu.device.cmd_write_timestamp2(
                 cmd,
@@ -68,10 +73,12 @@ impl Timer {
                 2 * i,
             )
         };
+        super::full_barrier(&self.gpu, cmd);
         Ok(i)
     }
 
     pub fn end(&self, cmd: vk::CommandBuffer, span: u32) {
+        super::full_barrier(&self.gpu, cmd);
         unsafe {
             self.gpu.device.cmd_write_timestamp2(
                 cmd,
@@ -80,6 +87,7 @@ impl Timer {
                 2 * span + 1,
             )
         };
+        super::full_barrier(&self.gpu, cmd);
     }
 
     /// (label, milliseconds) for every span, once the recording has completed.
