@@ -94,7 +94,8 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
         exr.to_str().unwrap(),
         "--lighting",
         "lamp_on_dimmed",
-        "--uncompressed",
+        "--maps",
+        "rgba16f",
     ]);
     let scene = relit_engine::scene::Scene::load(&s).unwrap();
     let input = relit_engine::scene::image::load_rgb(&scene.views[0].image).unwrap();
