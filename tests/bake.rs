@@ -280,8 +280,8 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
     let reference = cache_files(&a);
     assert_eq!(
         reference.len(),
-        1 + 2 * 4 * (2 + 2),
-        "albedo + per view: E_src, M_src, 2 × E_add, each as EXR and BC6H"
+        2 + 2 * 4 * (2 + 2),
+        "params.json, albedo + per view: E_src, M_src, 2 × E_add, each as EXR and BC6H"
     );
     // The BC6H copies load as one texture array and decode on the device close to the EXRs.
     {
@@ -395,8 +395,8 @@ fn view_slices_bake_separately_and_join() {
     assert!(text.contains("wait for every view"), "{text}");
     assert_eq!(
         cache_files(&d).len(),
-        2 * 2,
-        "only the slice's E_src (EXR + BC6H)"
+        1 + 2 * 2,
+        "params.json and only the slice's E_src (EXR + BC6H)"
     );
     let out = relit(&[
         "bake",
@@ -411,8 +411,8 @@ fn view_slices_bake_separately_and_join() {
     assert!(out.status.success());
     assert_eq!(
         cache_files(&d).len(),
-        1 + 2 * (4 + 2 * (1 + 2)),
-        "albedo, 4 E_src, then slice 2..4's maps, each as EXR and BC6H"
+        2 + 2 * (4 + 2 * (1 + 2)),
+        "params.json, albedo, 4 E_src, then slice 2..4's maps, each as EXR and BC6H"
     );
     let out = relit(&[
         "bake",
