@@ -233,6 +233,26 @@ fn frame_passes_match_cpu_references() {
             );
         }
     }
+    // Ratio mode: I_1 relit by eq. 5's pseudo-albedo rule, from the passes' own outputs.
+    r.render(&t.novel, &lighting, Mode::Ratio, 1.0, None)
+        .unwrap();
+    let hdr = r.hdr().unwrap();
+    let want = output::reference_ratio(&comp, &irr, npix);
+    for p in 0..npix {
+        let w = if g.pos_depth[p][3] > 0.0 {
+            want[p]
+        } else {
+            [0.0; 3]
+        };
+        for k in 0..3 {
+            assert!(
+                (hdr[p][k] - w[k]).abs() <= 1e-5 * w[k].abs().max(1.0),
+                "ratio pixel {p}: {} vs {}",
+                hdr[p][k],
+                w[k]
+            );
+        }
+    }
     common::assert_no_validation_errors(&gpu);
 }
 

@@ -1,6 +1,8 @@
 // The frame's output (§5.2): in network mode O = O_diffuse + O_vdep from the network's 6
 // channels (tonemapped space), inverted to linear HDR: x = ((1 + μ)^O − 1) / μ, μ = 64; in ULR
-// mode the I_1 composite (already linear). Writes linear RGBA32F (EXR) and a display image:
+// mode the I_1 composite (already linear); in ratio mode the I_1 composite relit by the
+// pseudo-albedo rule of eq. 5, I_1 / E_src · (E_add + E_src − E_rem) (E_src floored at 1e-4):
+// a diffuse relighting baseline that needs no network. Writes linear RGBA32F (EXR) and a display image:
 // exposure (a linear scale) then the sRGB transfer function, 8 bits (screen, PNG).
 #extension GL_EXT_shader_explicit_arithmetic_types_float16 : require
 #extension GL_EXT_shader_16bit_storage : require
@@ -14,6 +16,7 @@ layout(local_size_x = 64) in;
 
 layout(set = 0, binding = 4, rgba32f) readonly uniform image2D g_pos;
 layout(set = 0, binding = 13) readonly buffer Comp { vec4 comp[]; };
+layout(set = 0, binding = 14) readonly buffer Irr { vec4 irr[]; };     // E_src, E_add, E_rem
 layout(set = 0, binding = 16) readonly buffer Net { ACT4 o[]; };   // 6 channels, pack4
 layout(set = 0, binding = 17) writeonly buffer Hdr { vec4 hdr[]; };
 layout(set = 0, binding = 18) writeonly buffer Ldr { uint ldr[]; };
@@ -21,6 +24,7 @@ layout(set = 0, binding = 18) writeonly buffer Ldr { uint ldr[]; };
 layout(push_constant) uniform Push { uint width; uint height; uint mode; float exposure; } pc;
 
 const uint MODE_NETWORK = 0u;
+const uint MODE_ULR = 1u;
 
 float srgb(float x) {
     x = clamp(x, 0.0, 1.0);
@@ -37,8 +41,11 @@ void main() {
             vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
             vec3 tmo = max(a.xyz + vec3(a.w, b.x, b.y), vec3(0.0));
             c = (pow(vec3(65.0), tmo) - 1.0) / 64.0;
-        } else {
+        } else if (pc.mode == MODE_ULR) {
             c = comp[p].rgb;
+        } else {
+            vec3 es = irr[p].rgb;
+            c = comp[p].rgb / max(es, vec3(1e-4)) * (irr[npix + p].rgb + es - irr[2u * npix + p].rgb);
         }
     }
     hdr[p] = vec4(c, 1.0);

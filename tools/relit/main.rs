@@ -109,7 +109,7 @@ enum Cmd {
         frame: render::FrameArgs,
     },
     /// The interactive viewer (winit window, Vulkan swapchain). Keys: WASD/QE move, drag or
-    /// arrows look, 0–9 lighting presets, Tab/+/− light intensity, [ ] α_dim, M network/ULR,
+    /// arrows look, 0–9 lighting presets, Tab/+/− light intensity, [ ] α_dim, M network/ULR/ratio,
     /// P screenshot, F11 fullscreen, Esc quit.
     View {
         scene: PathBuf,

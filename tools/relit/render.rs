@@ -18,8 +18,9 @@ pub struct FrameArgs {
     /// frame shows the ULR composite.
     #[arg(long)]
     pub weights: Option<PathBuf>,
-    /// `network` (needs --weights) or `ulr` (the I_1 composite). Default: network when weights
-    /// are given, else ulr.
+    /// `network` (needs --weights), `ulr` (the I_1 composite) or `ratio` (I_1 relit by eq. 5's
+    /// pseudo-albedo rule: diffuse relighting without the network). Default: network when
+    /// weights are given, else ulr.
     #[arg(long, value_enum)]
     pub mode: Option<ModeArg>,
     /// Which bake to read (default: the final bake if complete, else the preview bake).
@@ -49,6 +50,8 @@ pub enum MapsArg {
 pub enum ModeArg {
     Network,
     Ulr,
+    /// The I_1 composite relit by eq. 5's pseudo-albedo rule (diffuse only, no network).
+    Ratio,
 }
 
 /// The best complete bake of `scene` (restricted to a quality preset's sample counts when
@@ -146,6 +149,7 @@ pub fn open_renderer(gpu: &Arc<Gpu>, scene: &Scene, a: &FrameArgs) -> Result<(Re
             bail!("--mode network needs --weights FILE.safetensors (no trained model ships yet)")
         }
         (Some(ModeArg::Ulr), _) => Mode::Ulr,
+        (Some(ModeArg::Ratio), _) => Mode::Ratio,
         (_, Some(_)) => Mode::Network,
         (None, None) => {
             eprintln!(

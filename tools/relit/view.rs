@@ -3,7 +3,7 @@
 //!
 //! Keys: W/A/S/D move, Q/E down/up (Shift: faster), drag with the left mouse button or use the
 //! arrow keys to look; 0 original lighting, 1–9 the scene's presets; Tab selects an added light,
-//! +/− change its intensity; [ ] change α_dim; M toggles network/ULR; P saves a screenshot;
+//! +/− change its intensity; [ ] change α_dim; M cycles network (with weights) / ULR / ratio; P saves a screenshot;
 //! F11 toggles fullscreen; Esc quits. The title shows fps and per-pass GPU times.
 
 use std::collections::HashSet;
@@ -268,11 +268,13 @@ impl App {
                 self.lighting.alpha_dim = (self.lighting.alpha_dim + d).clamp(0.0, 1.0);
                 self.preset_name = "custom".into();
             }
-            KeyCode::KeyM if self.renderer.net.is_some() => {
-                self.mode = if self.mode == Mode::Ulr {
-                    Mode::Network
-                } else {
-                    Mode::Ulr
+            KeyCode::KeyM => {
+                // Network (with weights) → ULR → ratio → …
+                self.mode = match self.mode {
+                    Mode::Network => Mode::Ulr,
+                    Mode::Ulr => Mode::Ratio,
+                    Mode::Ratio if self.renderer.net.is_some() => Mode::Network,
+                    Mode::Ratio => Mode::Ulr,
                 };
             }
             KeyCode::KeyP => {

@@ -251,6 +251,9 @@ pub enum Mode {
     Network,
     /// The `I_1` composite alone: unstructured-lumigraph-style blending, the baseline.
     Ulr,
+    /// `I_1 / E_src · (E_add + E_src − E_rem)`: the composite relit by eq. 5's pseudo-albedo
+    /// rule, a diffuse relighting baseline without the network (no view-dependent effects).
+    Ratio,
 }
 
 /// Per-resolution buffers of a frame.
@@ -534,7 +537,11 @@ impl Renderer {
                     let push = output::Push {
                         width,
                         height,
-                        mode: if mode == Mode::Network { 0 } else { 1 },
+                        mode: match mode {
+                            Mode::Network => 0,
+                            Mode::Ulr => 1,
+                            Mode::Ratio => 2,
+                        },
                         exposure,
                     };
                     let mut v = with13(&binds, &b.comp);

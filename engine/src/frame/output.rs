@@ -1,6 +1,6 @@
 //! The frame's output (§5.2): `shaders_glsl/frame/output.glsl`. Network mode sums the diffuse
 //! and view-dependent outputs in tonemapped space and inverts the tonemap; ULR mode shows the
-//! `I_1` composite. Linear HDR for EXR, exposure + sRGB in 8 bits for screens and PNG.
+//! `I_1` composite; ratio mode relights it with eq. 5's pseudo-albedo rule. Linear HDR for EXR, exposure + sRGB in 8 bits for screens and PNG.
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -36,6 +36,17 @@ pub fn reference_network(net_out: &[f32], npix: usize, has_surface: &[bool]) -> 
                 super::features::untonemap(net_out[k * npix + p] + net_out[(k + 3) * npix + p])
             };
             [c(0), c(1), c(2)]
+        })
+        .collect()
+}
+
+/// CPU reference of ratio mode from the composites and irradiance planes (as the passes wrote
+/// them): `I_1 / max(E_src, 1e-4) · (E_add + E_src − E_rem)`.
+pub fn reference_ratio(comp: &[[f32; 4]], irr: &[[f32; 4]], npix: usize) -> Vec<[f32; 3]> {
+    (0..npix)
+        .map(|p| {
+            let (i, es, ea, er) = (comp[p], irr[p], irr[npix + p], irr[2 * npix + p]);
+            [0, 1, 2].map(|k| i[k] / es[k].max(1e-4) * (ea[k] + es[k] - er[k]))
         })
         .collect()
 }
