@@ -12,13 +12,7 @@
 //   64     angle between normal and view vector / (π/2)
 //   65     reflected / observed distance: |y − x| / |x − c| (0 without a mirror hit)
 // Tonemap: log(1 + μx) / log(1 + μ), μ = 64. Pixels without a surface are all zero.
-#extension GL_EXT_shader_explicit_arithmetic_types_float16 : require
-#extension GL_EXT_shader_16bit_storage : require
-#ifdef STORE_F32
-#define ACT4 vec4
-#else
-#define ACT4 f16vec4
-#endif
+#include "act_storage.glsl"
 
 layout(local_size_x = 64) in;
 

@@ -4,13 +4,7 @@
 // pseudo-albedo rule of eq. 5, I_1 / E_src · (E_add + E_src − E_rem) (E_src floored at 1e-4):
 // a diffuse relighting baseline that needs no network. Writes linear RGBA32F (EXR) and a display image:
 // exposure (a linear scale) then the sRGB transfer function, 8 bits (screen, PNG).
-#extension GL_EXT_shader_explicit_arithmetic_types_float16 : require
-#extension GL_EXT_shader_16bit_storage : require
-#ifdef STORE_F32
-#define ACT4 vec4
-#else
-#define ACT4 f16vec4
-#endif
+#include "act_storage.glsl"
 
 layout(local_size_x = 64) in;
 

@@ -12,14 +12,10 @@
 #ifndef RELIT_CONV_GLSL
 #define RELIT_CONV_GLSL
 
-#extension GL_EXT_shader_explicit_arithmetic_types_float16 : require
-#extension GL_EXT_shader_16bit_storage : require
-
+#include "act_storage.glsl"
 #ifdef STORE_F32
-#define ACT4 vec4
 #define WVEC4 vec4
 #else
-#define ACT4 f16vec4
 #define WVEC4 f16vec4
 #endif
 

@@ -2,13 +2,7 @@
 // dst += up(src). Sampling matches PyTorch's interpolate(mode="bilinear", align_corners=False):
 // source coordinate (d + 0.5) * in/out - 0.5, clamped at 0, neighbours clamped to the edge.
 // Tensors in pack4 layout (conv.glsl). One invocation per destination pixel and channel group.
-#extension GL_EXT_shader_explicit_arithmetic_types_float16 : require
-#extension GL_EXT_shader_16bit_storage : require
-#ifdef STORE_F32
-#define ACT4 vec4
-#else
-#define ACT4 f16vec4
-#endif
+#include "act_storage.glsl"
 
 layout(local_size_x = 64) in;
 

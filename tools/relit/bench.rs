@@ -497,14 +497,7 @@ fn net_bench(
     for _ in 0..repeats.max(1) {
         let mut timer = Timer::new(&gpu, 64)?;
         gpu.submit(|cmd| net.record(cmd, &bufs, &x, Some(&mut timer)))??;
-        let spans = timer.read()?;
-        totals.push(spans.iter().map(|s| s.1).sum::<f64>());
-        for (label, ms) in spans {
-            match stages.iter_mut().find(|s| s.0 == label) {
-                Some(s) => s.1.push(ms),
-                None => stages.push((label, vec![ms])),
-            }
-        }
+        totals.push(collect_spans(&timer, &mut stages)?);
     }
     let total = median(totals);
     println!("{:<22} {:>10}", "stage", "ms");
@@ -527,6 +520,20 @@ fn net_bench(
         relit_engine::scene::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     }
     Ok(())
+}
+
+/// Adds a run's spans to `stages` (label → ms per run, in first-seen order); returns the
+/// run's total ms.
+fn collect_spans(timer: &Timer, stages: &mut Vec<(String, Vec<f64>)>) -> Result<f64> {
+    let spans = timer.read()?;
+    let total = spans.iter().map(|s| s.1).sum::<f64>();
+    for (label, ms) in spans {
+        match stages.iter_mut().find(|s| s.0 == label) {
+            Some(s) => s.1.push(ms),
+            None => stages.push((label, vec![ms])),
+        }
+    }
+    Ok(total)
 }
 
 fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
@@ -629,14 +636,7 @@ fn frame_bench(
         let tw = Instant::now();
         r.render(cam, &light, mode, 1.0, Some(&mut timer))?;
         walls.push(tw.elapsed().as_secs_f64() * 1e3);
-        let spans = timer.read()?;
-        totals.push(spans.iter().map(|s| s.1).sum::<f64>());
-        for (label, ms) in spans {
-            match stages.iter_mut().find(|s| s.0 == label) {
-                Some(s) => s.1.push(ms),
-                None => stages.push((label, vec![ms])),
-            }
-        }
+        totals.push(collect_spans(&timer, &mut stages)?);
     }
     println!("{:<22} {:>10} {:>10}", "pass", "median ms", "p95 ms");
     for (label, v) in &stages {
