@@ -127,7 +127,7 @@ fn frame_passes_match_cpu_references() {
     let surf = g.pos_depth.iter().filter(|p| p[3] > 0.0).count();
     assert!(surf * 10 > npix * 9, "the novel view must see the room");
     let eye = t.novel.center();
-    let active = frame::select_active(&r.scene.data.cameras, eye);
+    let active = frame::select_active(&r.scene.data.cameras, eye, None);
     let inputs = RefInputs {
         data: &r.scene.data,
         maps: &t.host,
@@ -139,6 +139,7 @@ fn frame_passes_match_cpu_references() {
         active: &active,
         intensities: &lighting.intensities,
         alpha_dim: lighting.alpha_dim,
+        exclude: None,
     };
     let dl = |buf: &relit_engine::gpu::Buffer, planes: usize| {
         let mut v: Vec<[f32; 4]> = buf.download_vec().unwrap();
@@ -256,6 +257,69 @@ fn frame_passes_match_cpu_references() {
     common::assert_no_validation_errors(&gpu);
 }
 
+/// Leave-one-out (`relit dump` of an input view): the excluded view takes part in no pass,
+/// and the passes still match their references.
+#[test]
+fn leave_one_out_excludes_the_view_from_every_pass() {
+    let gpu = common::gpu();
+    let t = tiny();
+    let lights = vec!["a".to_string(), "b".to_string()];
+    let scene = FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, lights, MapFormat::Rgba32f)
+        .unwrap();
+    let mut r = Renderer::new(&gpu, scene, None, Storage::F32).unwrap();
+    let lighting = Lighting {
+        intensities: vec![0.7, 0.0],
+        alpha_dim: 0.4,
+    };
+    // The novel camera is view 0 itself: with it left out, nothing may copy it.
+    let cam = t.cams[0].clone();
+    let npix = (cam.width * cam.height) as usize;
+    let dl = |buf: &relit_engine::gpu::Buffer, planes: usize| {
+        let mut v: Vec<[f32; 4]> = buf.download_vec().unwrap();
+        v.truncate(planes * npix);
+        v
+    };
+    r.render(&cam, &lighting, Mode::Ulr, 1.0, None).unwrap();
+    let with0 = dl(&r.buffers_ref().unwrap().comp, reproject::PLANES);
+    r.exclude = Some(0);
+    r.render(&cam, &lighting, Mode::Ulr, 1.0, None).unwrap();
+    let b = r.buffers_ref().unwrap();
+    let g = b.gbuf.download().unwrap();
+    let eye = cam.center();
+    let active = frame::select_active(&r.scene.data.cameras, eye, Some(0));
+    assert!(!active.contains(&0));
+    let inputs = RefInputs {
+        data: &r.scene.data,
+        maps: &t.host,
+        gpos: &g.pos_depth,
+        gnrm: &g.normal,
+        width: cam.width,
+        height: cam.height,
+        eye,
+        active: &active,
+        intensities: &lighting.intensities,
+        alpha_dim: lighting.alpha_dim,
+        exclude: Some(0),
+    };
+    let comp = dl(&b.comp, reproject::PLANES);
+    let (bad, _) = mismatch(&comp, &reproject::reference(&inputs), 0.01);
+    assert!(bad <= 0.03, "composites: {:.1}% differ", bad * 100.0);
+    // With view 0 in, I_1 at its own camera is view 0's image; without it, it is not.
+    let (same, _) = mismatch(&with0[..npix], &t.host.img[0], 0.01);
+    let (left_out, _) = mismatch(&comp[..npix], &t.host.img[0], 0.01);
+    assert!(
+        same < 0.05 && left_out > 0.2,
+        "I_1 vs view 0: {same} with it, {left_out} without"
+    );
+    let (bad, _) = mismatch(
+        &dl(&b.mirror, 1),
+        &target_mirror::reference(&inputs, &t.mesh),
+        0.01,
+    );
+    assert!(bad <= 0.03, "target mirror: {:.1}% differ", bad * 100.0);
+    common::assert_no_validation_errors(&gpu);
+}
+
 /// Network mode end to end: the frame's output equals the output transform applied to the
 /// network run separately on the frame's own input tensor.
 #[test]
@@ -341,7 +405,9 @@ fn lighting_presets_and_errors() {
             )
         })
         .collect();
-    let a = frame::select_active(&cams, Vec3::new(10.0, 0.0, 0.0));
+    let a = frame::select_active(&cams, Vec3::new(10.0, 0.0, 0.0), None);
     assert_eq!(a.len(), frame::MAX_ACTIVE);
     assert!(a.contains(&10) && a.contains(&0) && !a.contains(&99));
+    let a = frame::select_active(&cams, Vec3::new(10.0, 0.0, 0.0), Some(10));
+    assert!(a.len() == frame::MAX_ACTIVE && !a.contains(&10));
 }

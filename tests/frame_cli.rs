@@ -192,6 +192,16 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
         .get("relit.channels")
         .unwrap();
     assert!(ch.starts_with("[\"I_1.r\""), "{ch}");
+    let left = meta
+        .metadata()
+        .as_ref()
+        .unwrap()
+        .get("relit.left_out_view")
+        .unwrap();
+    assert_ne!(
+        left, "none",
+        "an input camera is left out of its own inputs"
+    );
 
     // Bad input: names what is wrong.
     let (code, _, se) = relit(&["render", sp, "--camera", "99", "--out", "/tmp/x.png"]);

@@ -24,6 +24,7 @@ layout(push_constant) uniform Push {
     vec4 eye;
     uint width; uint height; uint view_w; uint view_h;
     uint nviews; uint nlights; float alpha_dim;
+    uint exclude;    // a view left out of the frame (0xFFFFFFFF: none)
 } pc;
 
 void main() {
@@ -42,7 +43,7 @@ void main() {
     if (rayQueryGetIntersectionTypeEXT(rq, true) != gl_RayQueryCommittedIntersectionTriangleEXT) return;
     float t = rayQueryGetIntersectionTEXT(rq, true);
     vec3 y = o + r * t;
-    int q = best_view(y, r, 0xFFFFFFFFu, pc.nviews, pc.view_w, pc.view_h);
+    int q = best_view(y, r, pc.exclude, pc.nviews, pc.view_w, pc.view_h);
     if (q < 0) return;
     uint npv = pc.view_w * pc.view_h;
     uint j = uint(q) / npv, qp = uint(q) % npv;

@@ -105,6 +105,10 @@ enum Cmd {
         lighting: Option<String>,
         #[arg(long)]
         out: PathBuf,
+        /// When the camera is an input view, keep that view among the inputs (by default it is
+        /// left out of every pass, so the input does not contain the target).
+        #[arg(long)]
+        keep_view: bool,
         #[command(flatten)]
         frame: render::FrameArgs,
     },
@@ -589,8 +593,17 @@ fn main() {
             camera,
             lighting,
             out,
+            keep_view,
             frame,
-        } => render::dump(&opts, scene, camera, lighting.as_deref(), out, frame),
+        } => render::dump(
+            &opts,
+            scene,
+            camera,
+            lighting.as_deref(),
+            out,
+            *keep_view,
+            frame,
+        ),
         Cmd::Bake {
             scene,
             views,

@@ -379,6 +379,7 @@ pub fn dump(
     camera: &str,
     preset: Option<&str>,
     out: &Path,
+    keep_view: bool,
     a: &FrameArgs,
 ) -> Result<()> {
     use safetensors::tensor::TensorView;
@@ -391,6 +392,16 @@ pub fn dump(
     fa.mode = Some(ModeArg::Ulr);
     fa.storage = crate::StorageArg::F32;
     let (mut r, _) = open_renderer(&gpu, &scene, &fa)?;
+    // An input view's own image must not be among its inputs (the network would learn to copy
+    // it): leave it out of every pass unless --keep-view.
+    let view_index = match camera.parse::<usize>() {
+        Ok(i) => Some(i),
+        Err(_) => scene.views.iter().position(|v| v.name == camera),
+    };
+    let cam_name = view_index.map_or(camera.to_string(), |i| scene.views[i].name.clone());
+    if !keep_view {
+        r.exclude = view_index.map(|i| i as u32);
+    }
     r.render(&cam, &light, Mode::Ulr, 1.0, None)?;
     let input = r.buffers_ref().unwrap().input.download_chw()?;
     let (w, h) = (cam.width as usize, cam.height as usize);
@@ -399,7 +410,7 @@ pub fn dump(
         bytemuck::cast_slice(&input).to_vec(),
         vec![66, h, w],
     )];
-    let gt = ground_truth(&scene, camera, &light)?;
+    let gt = ground_truth(&scene, &cam_name, &light)?;
     if let Some((d, t)) = &gt {
         if d.len() != 3 * w * h {
             bail!("ground truth of {camera} is not {w}x{h}");
@@ -412,6 +423,12 @@ pub fn dump(
         tensors.push((
             "target_total".into(),
             bytemuck::cast_slice(t).to_vec(),
+            vec![3, h, w],
+        ));
+        let glossy: Vec<f32> = t.iter().zip(d).map(|(t, d)| t - d).collect();
+        tensors.push((
+            "target_glossy".into(),
+            bytemuck::cast_slice(&glossy).to_vec(),
             vec![3, h, w],
         ));
     }
@@ -429,14 +446,19 @@ pub fn dump(
         "relit.channels".to_string(),
         serde_json::to_string(&frame::features::channel_names())?,
     );
-    meta.insert("relit.camera".to_string(), camera.to_string());
+    meta.insert("relit.camera".to_string(), cam_name.clone());
+    meta.insert(
+        "relit.left_out_view".to_string(),
+        r.exclude
+            .map_or("none".to_string(), |i| scene.views[i as usize].name.clone()),
+    );
     meta.insert(
         "relit.lighting".to_string(),
         serde_json::json!({"alpha_dim": light.alpha_dim, "intensities": frame::added_lights(&scene).iter().zip(&light.intensities).collect::<Vec<_>>()}).to_string(),
     );
     meta.insert(
         "relit.targets".to_string(),
-        "linear radiance; target_total = diffuse + glossy".to_string(),
+        "linear radiance; target_total = target_diffuse + target_glossy".to_string(),
     );
     let bytes = safetensors::serialize(views, Some(meta))?;
     scene::write_atomic(out, &bytes)?;

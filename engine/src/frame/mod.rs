@@ -109,9 +109,11 @@ pub fn added_lights(scene: &Scene) -> Vec<String> {
         .collect()
 }
 
-/// The `MAX_ACTIVE` views nearest the novel camera, in view order.
-pub fn select_active(cameras: &[Camera], eye: Vec3) -> Vec<u32> {
-    let mut idx: Vec<u32> = (0..cameras.len() as u32).collect();
+/// The `MAX_ACTIVE` views nearest the novel camera, in view order, without `exclude`.
+pub fn select_active(cameras: &[Camera], eye: Vec3, exclude: Option<u32>) -> Vec<u32> {
+    let mut idx: Vec<u32> = (0..cameras.len() as u32)
+        .filter(|&i| Some(i) != exclude)
+        .collect();
     if idx.len() > MAX_ACTIVE {
         idx.sort_by(|&a, &b| {
             let da = cameras[a as usize].center().distance_squared(eye);
@@ -137,6 +139,8 @@ pub struct RefInputs<'a> {
     pub active: &'a [u32],
     pub intensities: &'a [f32],
     pub alpha_dim: f32,
+    /// The view left out of the frame (also by the target mirror).
+    pub exclude: Option<u32>,
 }
 
 impl RefInputs<'_> {
@@ -286,6 +290,9 @@ pub struct Renderer {
     features: Pipeline,
     output: Pipeline,
     bufs: Option<FrameBuffers>,
+    /// An input view left out of every pass (leave-one-out inputs for training on input
+    /// views: `relit dump` of an input camera).
+    pub exclude: Option<u32>,
 }
 
 /// Near and far planes of the novel view's G-buffer (m).
@@ -328,6 +335,7 @@ impl Renderer {
             net,
             storage,
             bufs: None,
+            exclude: None,
         })
     }
 
@@ -405,7 +413,7 @@ impl Renderer {
         self.buffers(width, height)?;
         let b = self.bufs.as_ref().unwrap();
         let eye = cam.center();
-        let active = select_active(&self.scene.data.cameras, eye);
+        let active = select_active(&self.scene.data.cameras, eye, self.exclude);
         b.active.upload(bytemuck::cast_slice(&active))?;
         let mut ints = lighting.intensities.clone();
         ints.resize(self.scene.lights.len().max(1), 0.0);
@@ -506,6 +514,7 @@ impl Renderer {
                         nviews: s.views.count,
                         nlights,
                         alpha_dim: lighting.alpha_dim,
+                        exclude: self.exclude.unwrap_or(u32::MAX),
                     };
                     self.target_mirror.dispatch_subset(
                         cmd,

@@ -16,6 +16,7 @@ pub struct Push {
     pub nviews: u32,
     pub nlights: u32,
     pub alpha_dim: f32,
+    pub exclude: u32,
 }
 
 pub const SHADER: &str = "frame/target_mirror.comp";
@@ -38,7 +39,10 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
                 return [0.0; 4];
             };
             let y = o + rd * h.t;
-            let Some(q) = r.data.best_view(y, rd, usize::MAX) else {
+            let Some(q) = r
+                .data
+                .best_view(y, rd, r.exclude.map_or(usize::MAX, |e| e as usize))
+            else {
                 return [0.0; 4];
             };
             let (j, qp) = (q / vpix, q % vpix);
