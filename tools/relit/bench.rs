@@ -82,6 +82,10 @@ pub enum BenchCmd {
         /// Also write the figures as JSON.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Then time the same network with PyTorch on the CPU (tools/train/bench_torch.py) with
+        /// as many threads as lavapipe uses (LP_NUM_THREADS, else the CPU count).
+        #[arg(long)]
+        torch: bool,
     },
 }
 
@@ -113,14 +117,21 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             storage,
             repeats,
             json,
-        } => net_bench(
-            *width,
-            *res,
-            (*storage).into(),
-            *repeats,
-            json.as_ref(),
-            opts,
-        ),
+            torch,
+        } => {
+            net_bench(
+                *width,
+                *res,
+                (*storage).into(),
+                *repeats,
+                json.as_ref(),
+                opts,
+            )?;
+            if *torch {
+                torch_bench(*width, *res, *repeats)?;
+            }
+            Ok(())
+        }
     }
 }
 
@@ -669,6 +680,42 @@ fn frame_bench(
             "fps": { "median": 1e3 / gm, "p95": 1e3 / gp },
         });
         relit_engine::scene::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// Runs tools/train/bench_torch.py (needs python3 with torch) with lavapipe's thread count.
+fn torch_bench(width: u32, (w, h): (u32, u32), repeats: u32) -> Result<()> {
+    let threads = std::env::var("LP_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let script = [
+        "tools/train/bench_torch.py",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/tools/train/bench_torch.py"),
+    ]
+    .into_iter()
+    .map(PathBuf::from)
+    .find(|p| p.exists())
+    .ok_or_else(|| {
+        anyhow::anyhow!("tools/train/bench_torch.py not found (run from the repository root)")
+    })?;
+    let st = std::process::Command::new("python3")
+        .arg(&script)
+        .args(["--width", &width.to_string(), "--res", &format!("{w}x{h}")])
+        .args([
+            "--threads",
+            &threads.to_string(),
+            "--repeats",
+            &repeats.max(1).to_string(),
+        ])
+        .status()
+        .map_err(|e| anyhow::anyhow!("running python3 {}: {e}", script.display()))?;
+    if !st.success() {
+        anyhow::bail!(
+            "{} failed ({st}); it needs PyTorch (pip install torch)",
+            script.display()
+        );
     }
     Ok(())
 }
