@@ -289,6 +289,13 @@ impl App {
     }
 
     fn draw(&mut self, el: &ActiveEventLoop) -> Result<()> {
+        // A minimized window has no area to present to.
+        if self.window.as_ref().is_some_and(|w| {
+            let s = w.inner_size();
+            s.width == 0 || s.height == 0
+        }) {
+            return Ok(());
+        }
         let now = Instant::now();
         let dt = (now - self.last).as_secs_f32().min(0.5);
         self.last = now;
@@ -345,10 +352,15 @@ impl App {
             self.screenshot_now.take()
         };
         let read_back = shot.is_some() && swap.readable;
+        // Only a screenshot needs the window's pixels back.
         let readback = Buffer::new(
             &gpu,
             "screenshot",
-            (ext.width * ext.height * 4).max(4) as u64,
+            if read_back {
+                (ext.width * ext.height * 4) as u64
+            } else {
+                4
+            },
             vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
