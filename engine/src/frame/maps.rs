@@ -126,6 +126,62 @@ impl ViewMaps {
     }
 }
 
+impl ViewMaps {
+    /// The maps of a baked scene in `format`; BC6H layers come from the cache's `.bc6h` copies
+    /// when they are all there (no re-encoding; the images, not in the cache, are encoded here).
+    pub fn upload_cached(
+        gpu: &Arc<Gpu>,
+        scene: &crate::scene::Scene,
+        params: &crate::bake::BakeParams,
+        host: &HostMaps,
+        format: MapFormat,
+    ) -> Result<ViewMaps> {
+        use crate::bake::run;
+        let cache = run::cache_dir(scene, params)?;
+        let files = |f: &dyn Fn(&str) -> std::path::PathBuf| -> Option<Vec<std::path::PathBuf>> {
+            let v: Vec<_> = scene
+                .views
+                .iter()
+                .map(|v| run::bc6h_file(&f(&v.name)))
+                .collect();
+            v.iter().all(|p| p.exists()).then_some(v)
+        };
+        let msrc = files(&|v| run::msrc_file(&cache, v));
+        let esrc = files(&|v| run::esrc_file(&cache, v));
+        let lights = super::added_lights(scene);
+        let mut eadd = Some(Vec::new());
+        for l in &lights {
+            match (files(&|v| run::eadd_file(&cache, v, l)), eadd.as_mut()) {
+                (Some(f), Some(all)) => all.extend(f),
+                _ => eadd = None,
+            }
+        }
+        let (Some(msrc), Some(esrc), Some(eadd), MapFormat::Bc6h) = (msrc, esrc, eadd, format)
+        else {
+            return ViewMaps::upload(gpu, host, format);
+        };
+        let (w, h) = (host.width, host.height);
+        Ok(ViewMaps {
+            img: upload_layers(gpu, "maps: I", w, h, &host.img, format)?,
+            msrc: Bc6hTexture::from_files(gpu, &msrc)?.image,
+            esrc: Bc6hTexture::from_files(gpu, &esrc)?.image,
+            eadd: if lights.is_empty() {
+                upload_layers(
+                    gpu,
+                    "maps: E_add",
+                    w,
+                    h,
+                    &[vec![[0f32; 4]; (w * h) as usize]],
+                    format,
+                )?
+            } else {
+                Bc6hTexture::from_files(gpu, &eadd)?.image
+            },
+            format,
+        })
+    }
+}
+
 /// CPU mirror of `sample_map` in frame.glsl: bilinear, clamp to edge, at continuous pixel
 /// coordinate `px` (texel centres at +½).
 pub fn sample_bilinear(map: &[[f32; 4]], w: u32, h: u32, px: glam::Vec2) -> glam::Vec3 {

@@ -179,6 +179,24 @@ impl FrameScene {
         lights: Vec<String>,
         format: MapFormat,
     ) -> Result<FrameScene> {
+        FrameScene::build(
+            gpu,
+            mesh,
+            cameras,
+            host,
+            lights,
+            ViewMaps::upload(gpu, host, format)?,
+        )
+    }
+
+    fn build(
+        gpu: &Arc<Gpu>,
+        mesh: &crate::scene::Mesh,
+        cameras: &[Camera],
+        host: &HostMaps,
+        lights: Vec<String>,
+        maps: ViewMaps,
+    ) -> Result<FrameScene> {
         let rs = RayScene::new(gpu, &mesh.positions, &mesh.triangles)?;
         let images: Vec<crate::scene::RgbImage> = host
             .img
@@ -195,7 +213,7 @@ impl FrameScene {
             mesh: rs,
             data,
             views,
-            maps: ViewMaps::upload(gpu, host, format)?,
+            maps,
             lights,
             sampler: Sampler::linear(gpu)?,
         })
@@ -211,7 +229,8 @@ impl FrameScene {
         let host = load_host_maps(scene, params)?;
         let mesh = bakerun::bake_mesh(scene, params);
         let cams: Vec<Camera> = scene.views.iter().map(|v| v.camera.clone()).collect();
-        FrameScene::from_parts(gpu, &mesh, &cams, &host, added_lights(scene), format)
+        let maps = ViewMaps::upload_cached(gpu, scene, params, &host, format)?;
+        FrameScene::build(gpu, &mesh, &cams, &host, added_lights(scene), maps)
     }
 }
 
