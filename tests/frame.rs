@@ -150,7 +150,7 @@ fn frame_passes_match_cpu_references() {
     // Reproject: the depth test and the luminance ranks can flip at edges where GPU and CPU
     // projections differ in the last bit; bilinear weights on lavapipe are 8-bit fixed point.
     // 1% of the reference's scale on ≥ 97% of pixels, per plane.
-    let comp = dl(&b.comp, reproject::PLANES);
+    let comp = b.composites().unwrap();
     let comp_ref = reproject::reference(&inputs);
     for k in 0..reproject::PLANES {
         let s = k * npix..(k + 1) * npix;
@@ -280,7 +280,7 @@ fn leave_one_out_excludes_the_view_from_every_pass() {
         v
     };
     r.render(&cam, &lighting, Mode::Ulr, 1.0, None).unwrap();
-    let with0 = dl(&r.buffers_ref().unwrap().comp, reproject::PLANES);
+    let with0 = r.buffers_ref().unwrap().composites().unwrap();
     r.exclude = Some(0);
     r.render(&cam, &lighting, Mode::Ulr, 1.0, None).unwrap();
     let b = r.buffers_ref().unwrap();
@@ -301,7 +301,7 @@ fn leave_one_out_excludes_the_view_from_every_pass() {
         alpha_dim: lighting.alpha_dim,
         exclude: Some(0),
     };
-    let comp = dl(&b.comp, reproject::PLANES);
+    let comp = b.composites().unwrap();
     let (bad, _) = mismatch(&comp, &reproject::reference(&inputs), 0.01);
     assert!(bad <= 0.03, "composites: {:.1}% differ", bad * 100.0);
     // With view 0 in, I_1 at its own camera is view 0's image; without it, it is not.

@@ -18,7 +18,7 @@ layout(local_size_x = 64) in;
 
 layout(set = 0, binding = 4, rgba32f) readonly uniform image2D g_pos;
 layout(set = 0, binding = 5, rgba32f) readonly uniform image2D g_nrm;
-layout(set = 0, binding = 13) readonly buffer Comp { vec4 comp[]; };     // 16 planes
+layout(set = 0, binding = 13) readonly buffer Comp { f16vec4 comp[]; };     // 16 planes
 layout(set = 0, binding = 14) readonly buffer Irr { vec4 irr[]; };       // 3 planes
 layout(set = 0, binding = 15) readonly buffer Mirror { vec4 mirror[]; }; // 1 plane
 layout(set = 0, binding = 16) writeonly buffer Tensor { ACT4 t[]; };
@@ -43,7 +43,7 @@ void main() {
         vec3 n = imageLoad(g_nrm, xy).xyz;
         if (dot(n, eye - x) < 0.0) n = -n;
         for (uint k = 0u; k < 16u; ++k) {
-            vec3 c = tm(comp[k * npix + p].rgb);
+            vec3 c = tm(vec3(comp[k * npix + p].rgb));
             v[3u * k] = c.r; v[3u * k + 1u] = c.g; v[3u * k + 2u] = c.b;
         }
         vec4 m = mirror[p];

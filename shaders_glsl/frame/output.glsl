@@ -9,7 +9,7 @@
 layout(local_size_x = 64) in;
 
 layout(set = 0, binding = 4, rgba32f) readonly uniform image2D g_pos;
-layout(set = 0, binding = 13) readonly buffer Comp { vec4 comp[]; };
+layout(set = 0, binding = 13) readonly buffer Comp { f16vec4 comp[]; };
 layout(set = 0, binding = 14) readonly buffer Irr { vec4 irr[]; };     // E_src, E_add, E_rem
 layout(set = 0, binding = 16) readonly buffer Net { ACT4 o[]; };   // 6 channels, pack4
 layout(set = 0, binding = 17) writeonly buffer Hdr { vec4 hdr[]; };
@@ -36,10 +36,10 @@ void main() {
             vec3 tmo = max(a.xyz + vec3(a.w, b.x, b.y), vec3(0.0));
             c = (pow(vec3(65.0), tmo) - 1.0) / 64.0;
         } else if (pc.mode == MODE_ULR) {
-            c = comp[p].rgb;
+            c = vec3(comp[p].rgb);
         } else {
             vec3 es = irr[p].rgb;
-            c = comp[p].rgb / max(es, vec3(1e-4)) * (irr[npix + p].rgb + es - irr[2u * npix + p].rgb);
+            c = vec3(comp[p].rgb) / max(es, vec3(1e-4)) * (irr[npix + p].rgb + es - irr[2u * npix + p].rgb);
         }
     }
     hdr[p] = vec4(c, 1.0);

@@ -8,8 +8,11 @@
 //   I_5..8, M_5..8: the view with the highest, 2nd highest, median (lower median, index
 //     (k-1)/2 of k sorted ascending) and lowest luminance of I, over all active views that see
 //     x (ties broken by view index).
-// Output: 16 planes of vec4 per pixel (I_1..8 then M_1..8), w = 1 where defined.
+// Output: 16 planes of f16vec4 per pixel (I_1..8 then M_1..8), w = 1 where defined; half
+// precision keeps the buffer within maxStorageBufferRange up to 1024x768.
 #extension GL_EXT_scalar_block_layout : require
+#extension GL_EXT_shader_explicit_arithmetic_types_float16 : require
+#extension GL_EXT_shader_16bit_storage : require
 #extension GL_GOOGLE_include_directive : require
 
 layout(local_size_x = 64) in;
@@ -19,18 +22,20 @@ layout(local_size_x = 64) in;
 layout(set = 0, binding = 6) readonly buffer Active { uint active_views[]; };
 layout(set = 0, binding = 7) uniform sampler2DArray tex_img;
 layout(set = 0, binding = 8) uniform sampler2DArray tex_msrc;
-layout(set = 0, binding = 13) writeonly buffer Out { vec4 comp[]; };
+layout(set = 0, binding = 13) writeonly buffer Out { f16vec4 comp[]; };
 
 layout(push_constant) uniform Push {
     vec4 eye;
     uint width; uint height; uint nactive; uint view_w; uint view_h;
 } pc;
 
+void put(uint i, vec4 v) { comp[i] = f16vec4(clamp(v, -65000.0, 65000.0)); }
+
 void main() {
     uint p = gl_GlobalInvocationID.x;
     uint npix = pc.width * pc.height;
     if (p >= npix) return;
-    for (uint k = 0u; k < 16u; ++k) comp[k * npix + p] = vec4(0.0);
+    for (uint k = 0u; k < 16u; ++k) put(k * npix + p, vec4(0.0));
     vec3 x, n;
     float depth;
     vec3 eye = pc.eye.xyz;
@@ -74,8 +79,8 @@ void main() {
     }
     for (uint k = 0u; k < 4u; ++k) {
         if (sw[k] > 0.0) {
-            comp[k * npix + p] = vec4(si[k] / sw[k], 1.0);
-            comp[(8u + k) * npix + p] = vec4(sm[k] / sw[k], 1.0);
+            put(k * npix + p, vec4(si[k] / sw[k], 1.0));
+            put((8u + k) * npix + p, vec4(sm[k] / sw[k], 1.0));
         }
     }
     if (cnt == 0u) return;
@@ -83,7 +88,7 @@ void main() {
     for (uint k = 0u; k < 4u; ++k) {
         uint j = vid[pick[k]];
         vec2 px = project_px(j, x);
-        comp[(4u + k) * npix + p] = vec4(sample_map(tex_img, px, j), 1.0);
-        comp[(12u + k) * npix + p] = vec4(sample_map(tex_msrc, px, j), 1.0);
+        put((4u + k) * npix + p, vec4(sample_map(tex_img, px, j), 1.0));
+        put((12u + k) * npix + p, vec4(sample_map(tex_msrc, px, j), 1.0));
     }
 }

@@ -296,6 +296,18 @@ pub struct FrameBuffers {
     dummy_net_out: Tensor,
 }
 
+impl FrameBuffers {
+    /// The 16 composite planes (I_1..8, M_src_1..8; stored as half floats) as f32.
+    pub fn composites(&self) -> Result<Vec<[f32; 4]>> {
+        let n = reproject::PLANES * (self.width * self.height) as usize;
+        let h: Vec<half::f16> =
+            bytemuck::pod_collect_to_vec(&self.comp.download_range(0, n as u64 * 8)?);
+        Ok(h.chunks_exact(4)
+            .map(|c| [c[0].to_f32(), c[1].to_f32(), c[2].to_f32(), c[3].to_f32()])
+            .collect())
+    }
+}
+
 /// The frame pipelines and, optionally, the network.
 pub struct Renderer {
     pub gpu: Arc<Gpu>,
@@ -381,7 +393,7 @@ impl Renderer {
                 width,
                 height,
                 gbuf: Gbuffer::new(gpu, width, height)?,
-                comp: buf("frame composites", reproject::PLANES as u64 * n * 16)?,
+                comp: buf("frame composites", reproject::PLANES as u64 * n * 8)?,
                 irr: buf("frame irradiance", irradiance::PLANES as u64 * n * 16)?,
                 mirror: buf("frame target mirror", n * 16)?,
                 active: buf("frame active views", MAX_ACTIVE as u64 * 4)?,
@@ -584,7 +596,7 @@ impl Renderer {
         res
     }
 
-    /// The buffers of the last [`Renderer::render`].
+    /// The buffers of the last [`Renderer::render`] (composites: [`FrameBuffers::composites`]).
     pub fn buffers_ref(&self) -> Option<&FrameBuffers> {
         self.bufs.as_ref()
     }

@@ -166,6 +166,17 @@ impl Buffer {
         location: MemoryLocation,
     ) -> Result<Buffer> {
         let size = size.max(4);
+        // Shaders bind whole buffers: a storage buffer beyond the device's range cannot be bound.
+        if usage.contains(vk::BufferUsageFlags::STORAGE_BUFFER)
+            && size > gpu.caps.max_storage_buffer_range as u64
+        {
+            return Err(Error::Device(format!(
+                "buffer \"{name}\" needs {:.1} MiB; the device binds at most {:.1} MiB per storage \
+                 buffer (maxStorageBufferRange): use a smaller resolution, fewer views or fp16 storage",
+                size as f64 / 1048576.0,
+                gpu.caps.max_storage_buffer_range as f64 / 1048576.0
+            )));
+        }
         let usage = usage | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST;
         let d = &gpu.device;
         let raw = unsafe {
