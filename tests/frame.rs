@@ -108,18 +108,26 @@ fn mismatch(gpu: &[[f32; 4]], cpu: &[[f32; 4]], tol: f32) -> (f32, f32) {
     (bad as f32 / gpu.len().max(1) as f32, worst)
 }
 
-#[test]
-fn frame_passes_match_cpu_references() {
-    let gpu = common::gpu();
-    let t = tiny();
+/// A renderer without a network over exact maps, two added lights, one of them on.
+fn ulr_renderer(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>, t: &Tiny) -> (Renderer, Lighting) {
     let lights = vec!["a".to_string(), "b".to_string()];
-    let scene = FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, lights, MapFormat::Rgba32f)
-        .unwrap();
-    let mut r = Renderer::new(&gpu, scene, None, Storage::F32).unwrap();
+    let scene =
+        FrameScene::from_parts(gpu, &t.mesh, &t.cams, &t.host, lights, MapFormat::Rgba32f).unwrap();
     let lighting = Lighting {
         intensities: vec![0.7, 0.0],
         alpha_dim: 0.4,
     };
+    (
+        Renderer::new(gpu, scene, None, Storage::F32).unwrap(),
+        lighting,
+    )
+}
+
+#[test]
+fn frame_passes_match_cpu_references() {
+    let gpu = common::gpu();
+    let t = tiny();
+    let (mut r, lighting) = ulr_renderer(&gpu, &t);
     r.render(&t.novel, &lighting, Mode::Ulr, 1.0, None).unwrap();
     let b = r.buffers_ref().unwrap();
     let g = b.gbuf.download().unwrap();
@@ -263,14 +271,7 @@ fn frame_passes_match_cpu_references() {
 fn leave_one_out_excludes_the_view_from_every_pass() {
     let gpu = common::gpu();
     let t = tiny();
-    let lights = vec!["a".to_string(), "b".to_string()];
-    let scene = FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, lights, MapFormat::Rgba32f)
-        .unwrap();
-    let mut r = Renderer::new(&gpu, scene, None, Storage::F32).unwrap();
-    let lighting = Lighting {
-        intensities: vec![0.7, 0.0],
-        alpha_dim: 0.4,
-    };
+    let (mut r, lighting) = ulr_renderer(&gpu, &t);
     // The novel camera is view 0 itself: with it left out, nothing may copy it.
     let cam = t.cams[0].clone();
     let npix = (cam.width * cam.height) as usize;

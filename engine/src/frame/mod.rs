@@ -496,6 +496,10 @@ impl Renderer {
                         }
                     }};
                 }
+                // A compute pass over every pixel, its output at binding 13.
+                let pass = |p: &Pipeline, out: &Buffer, push: &[u8]| {
+                    p.dispatch_subset(cmd, &with13(&binds, out), push, threads)
+                };
                 timed!("g-buffer", {
                     self.gbuffer.record(cmd, &s.mesh, cam, NEAR, FAR, &b.gbuf)?;
                     full_barrier(&gpu, cmd);
@@ -509,12 +513,7 @@ impl Renderer {
                         view_w: vw,
                         view_h: vh,
                     };
-                    self.reproject.dispatch_subset(
-                        cmd,
-                        &with13(&binds, &b.comp),
-                        bytes_of(&push),
-                        threads,
-                    )?;
+                    pass(&self.reproject, &b.comp, bytes_of(&push))?;
                 });
                 timed!("irradiance", {
                     let push = irradiance::Push {
@@ -528,12 +527,7 @@ impl Renderer {
                         nlights,
                         alpha_dim: lighting.alpha_dim,
                     };
-                    self.irradiance.dispatch_subset(
-                        cmd,
-                        &with13(&binds, &b.irr),
-                        bytes_of(&push),
-                        threads,
-                    )?;
+                    pass(&self.irradiance, &b.irr, bytes_of(&push))?;
                 });
                 timed!("target mirror", {
                     let push = target_mirror::Push {
@@ -547,12 +541,7 @@ impl Renderer {
                         alpha_dim: lighting.alpha_dim,
                         exclude: self.exclude.unwrap_or(u32::MAX),
                     };
-                    self.target_mirror.dispatch_subset(
-                        cmd,
-                        &with13(&binds, &b.mirror),
-                        bytes_of(&push),
-                        threads,
-                    )?;
+                    pass(&self.target_mirror, &b.mirror, bytes_of(&push))?;
                 });
                 full_barrier(&gpu, cmd);
                 timed!("features", {
@@ -561,12 +550,7 @@ impl Renderer {
                         width,
                         height,
                     };
-                    self.features.dispatch_subset(
-                        cmd,
-                        &with13(&binds, &b.comp),
-                        bytes_of(&push),
-                        threads,
-                    )?;
+                    pass(&self.features, &b.comp, bytes_of(&push))?;
                     full_barrier(&gpu, cmd);
                 });
                 if mode == Mode::Network {
