@@ -23,7 +23,8 @@ pub struct FrameArgs {
     /// weights are given, else ulr.
     #[arg(long, value_enum)]
     pub mode: Option<ModeArg>,
-    /// Which bake to read (default: the final bake if complete, else the preview bake).
+    /// Which bake to read: the preset's sample counts (default: the complete bake with the most
+    /// rays, whatever its parameters).
     #[arg(long, value_enum)]
     pub quality: Option<crate::Quality>,
     /// Element type of the network's tensors in device memory.
