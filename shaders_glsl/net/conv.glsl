@@ -39,6 +39,7 @@ layout(push_constant) uniform Push {
     float out_bias;                        // added after the scale
     float scale;
     uint flags;
+    uint ocb_base;                         // first output block of this dispatch
 } pc;
 
 // Vec4 index of the weights of (ocb, tap, ic), output channels 4j..4j+3 of the block at + j.

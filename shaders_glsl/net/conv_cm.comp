@@ -22,7 +22,7 @@ shared float c_tile[16 * 16];
 void main() {
     uint ox0 = gl_WorkGroupID.x * 16u;
     uint oy = gl_WorkGroupID.y;
-    uint ocb = gl_WorkGroupID.z;
+    uint ocb = pc.ocb_base + gl_WorkGroupID.z;
     uint lid = gl_LocalInvocationID.x;
     coopmat<float, gl_ScopeSubgroup, 16, 16, gl_MatrixUseAccumulator> acc =
         coopmat<float, gl_ScopeSubgroup, 16, 16, gl_MatrixUseAccumulator>(0.0);

@@ -250,6 +250,7 @@ struct ConvPush {
     out_bias: f32,
     scale: f32,
     flags: u32,
+    ocb_base: u32,
 }
 
 #[repr(C)]
@@ -267,6 +268,8 @@ pub struct NetKernels {
     pub backend: Backend,
     pub storage: Storage,
     conv: Pipeline,
+    /// Portable only: the kernel for a last block with at most 4 real channels.
+    conv_rem: Option<Pipeline>,
     up: Pipeline,
     pub gpu: Arc<Gpu>,
 }
@@ -296,10 +299,18 @@ impl NetKernels {
             Storage::F16 => "net/upsample_add.comp",
             Storage::F32 => "net/upsample_add_f32.comp",
         };
+        let conv_rem = match (storage, backend) {
+            (Storage::F16, Backend::Portable) => Some(Pipeline::compute(gpu, "net/conv_r.comp")?),
+            (Storage::F32, Backend::Portable) => {
+                Some(Pipeline::compute(gpu, "net/conv_r_f32.comp")?)
+            }
+            _ => None,
+        };
         Ok(NetKernels {
             backend,
             storage,
             conv: Pipeline::compute(gpu, conv)?,
+            conv_rem,
             up: Pipeline::compute(gpu, up)?,
             gpu: gpu.clone(),
         })
@@ -348,6 +359,7 @@ impl NetKernels {
             out_bias: ep.out_bias,
             scale: ep.scale,
             flags: u32::from(ep.relu) | if ep.residual.is_some() { 2 } else { 0 },
+            ocb_base: 0,
         };
         let res = ep.residual.unwrap_or(input);
         let binds = [
@@ -357,13 +369,32 @@ impl NetKernels {
             (3, Bind::Buffer(&res.buf)),
             (4, Bind::Buffer(&out.buf)),
         ];
-        let blocks = layer.oc.div_ceil(OCB);
-        let groups = match self.backend {
-            Backend::Portable => (ow.div_ceil(PX * 8), oh.div_ceil(8), blocks),
-            Backend::CoopMatrix => (ow.div_ceil(16), oh, blocks),
-        };
-        self.conv
-            .dispatch_groups(cmd, &binds, bytes_of(&push), groups)?;
+        let (full, rem) = (layer.oc / OCB, layer.oc % OCB);
+        match (&self.conv_rem, self.backend) {
+            // A last block with ≤ 4 real channels: the remainder kernel does 1/4 of a block.
+            (Some(r), Backend::Portable) if (1..=4).contains(&rem) => {
+                let grid = |z| (ow.div_ceil(PX * 8), oh.div_ceil(8), z);
+                if full > 0 {
+                    self.conv
+                        .dispatch_groups(cmd, &binds, bytes_of(&push), grid(full))?;
+                }
+                let push = ConvPush {
+                    ocb_base: full,
+                    ..push
+                };
+                r.dispatch_groups(cmd, &binds, bytes_of(&push), grid(1))?;
+            }
+            (_, Backend::Portable) => {
+                let grid = (ow.div_ceil(PX * 8), oh.div_ceil(8), layer.oc.div_ceil(OCB));
+                self.conv
+                    .dispatch_groups(cmd, &binds, bytes_of(&push), grid)?;
+            }
+            (_, Backend::CoopMatrix) => {
+                let grid = (ow.div_ceil(16), oh, layer.oc.div_ceil(OCB));
+                self.conv
+                    .dispatch_groups(cmd, &binds, bytes_of(&push), grid)?;
+            }
+        }
         full_barrier(&self.gpu, cmd);
         Ok(())
     }
