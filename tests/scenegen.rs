@@ -16,6 +16,7 @@ fn small() -> RoomOptions {
         height: 24,
         extra_lights: 3,
         test_views: 2,
+        light_views: 3,
     }
 }
 
@@ -257,4 +258,98 @@ fn mesh_processing_snaps_the_proxys_planes_and_smooths_it() {
         before,
         spread(&snapped)
     );
+}
+
+/// Options of the coverage tests: the default capture (32 views, 3 views per original light) at
+/// a small resolution; coverage does not depend on it (intrinsics scale with the image).
+fn capture(light_views: usize) -> RoomOptions {
+    RoomOptions {
+        width: 64,
+        height: 48,
+        light_views,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn default_capture_views_see_every_original_light_three_times() {
+    use relit_engine::scene::{light_coverage, MIN_VIEWS_PER_LIGHT};
+    let dir = common::tempdir("scenegen-coverage");
+    for seed in 1..=8 {
+        let s = relit_scenegen::generate(&dir, seed, &capture(3)).unwrap();
+        assert_eq!(s.views.len(), 32);
+        let cov = light_coverage(&s);
+        assert_eq!(cov.len(), s.lights.iter().filter(|l| l.original).count());
+        for c in &cov {
+            eprintln!("seed {seed}: {}", c.summary());
+            assert!(
+                c.views() >= MIN_VIEWS_PER_LIGHT,
+                "seed {seed}: {}",
+                c.summary()
+            );
+        }
+        // The light views come first and each sees its light (taken in turn) nearly whole.
+        for (k, c) in cov.iter().cycle().take(3 * cov.len()).enumerate() {
+            let sight = c.seen_by.iter().find(|v| v.view == k);
+            assert!(
+                sight.is_some_and(|v| v.visible >= 0.75),
+                "seed {seed}: view {k} is aimed at {} but sees {sight:?}",
+                c.name
+            );
+        }
+    }
+}
+
+#[test]
+fn scene_check_warns_about_a_light_few_views_see() {
+    use relit_engine::scene::image::{write_exr, RgbImage};
+    // Seed 4 without light views: 0 of 32 views see its ceiling panel (its window: 11).
+    let dir = common::tempdir("scenegen-few-views");
+    let s = relit_scenegen::generate(&dir, 4, &capture(0)).unwrap();
+    let mut img = RgbImage::new(64, 48);
+    img.pixels.fill([0.5; 3]);
+    for v in &s.views {
+        write_exr(&v.image, &img).unwrap();
+    }
+    for quick in [false, true] {
+        let mut args = vec!["scene", "check", dir.to_str().unwrap()];
+        if quick {
+            args.push("--quick");
+        }
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_relit"))
+            .args(&args)
+            .output()
+            .unwrap();
+        let (stdout, stderr) = (
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr),
+        );
+        assert_eq!(out.status.code(), Some(0), "{stdout}\n{stderr}");
+        assert!(
+            stdout.contains("light ceiling0: seen by 0 of 32 views"),
+            "{stdout}"
+        );
+        assert!(stdout.contains("light window: seen by "), "{stdout}");
+        let warnings: Vec<&str> = stderr
+            .lines()
+            .filter(|l| l.starts_with("warning:"))
+            .collect();
+        assert_eq!(warnings.len(), 1, "{stderr}");
+        assert!(
+            warnings[0].starts_with(
+                "warning: original light 'ceiling0' is seen by 0 of 32 input views (fewer than 3)"
+            ) && warnings[0].contains("next-event estimation"),
+            "{stderr}"
+        );
+    }
+    // The default capture has light views: no warning.
+    let ok = common::tempdir("scenegen-light-views");
+    relit_scenegen::generate(&ok, 4, &capture(3)).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_relit"))
+        .args(["scene", "check", ok.to_str().unwrap(), "--quick"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+    assert!(!stderr.contains("warning:"), "{stderr}");
 }

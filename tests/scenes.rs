@@ -426,3 +426,201 @@ fn the_bundled_scenes_load() {
     );
     assert!((24..=40).contains(&demo.views.len()));
 }
+
+/// The synthetic room plus random triangles (thin, crossing, some far outside), as a BVH's
+/// worst cases: overlapping boxes, degenerate extents, triangles spanning the room.
+fn bvh_test_mesh() -> Mesh {
+    let (mut mesh, _) = synth::room(6);
+    let mut rng = Rng::new(17);
+    for _ in 0..300 {
+        let c = Vec3::new(
+            rng.range(-3.0, 3.0),
+            rng.range(-0.5, 3.0),
+            rng.range(-3.0, 3.0),
+        );
+        let s = if rng.f32() < 0.1 { 3.0 } else { 0.3 };
+        let base = mesh.positions.len() as u32;
+        for _ in 0..3 {
+            let p = c + s * Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            mesh.positions.push(p.into());
+        }
+        mesh.triangles.push([base, base + 1, base + 2]);
+    }
+    mesh
+}
+
+#[test]
+fn mesh_bvh_matches_brute_force_ray_casting() {
+    use relit_engine::cpu::{closest_hit, occluded, MeshBvh};
+    let mesh = bvh_test_mesh();
+    let bvh = MeshBvh::new(&mesh);
+    // Origins inside the closed room (4 × 2.6 × 3.5 m), so that most rays hit.
+    let (lo, hi) = (Vec3::new(-1.9, 0.1, -1.6), Vec3::new(1.9, 2.5, 1.6));
+    let mut rng = Rng::new(5);
+    let mut hits = 0;
+    for i in 0..3000 {
+        let o = lo + (hi - lo) * Vec3::new(rng.f32(), rng.f32(), rng.f32());
+        // Every 10th ray runs along an axis (zero direction components).
+        let d = if i % 10 == 0 {
+            [Vec3::X, Vec3::NEG_Y, Vec3::Z][i / 10 % 3]
+        } else {
+            Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            )
+            .normalize()
+        };
+        let (tmin, tmax) = (rng.range(0.0, 0.2), rng.range(0.05, 8.0));
+        assert_eq!(
+            bvh.occluded(o, d, tmin, tmax),
+            occluded(&mesh, o, d, tmin, tmax),
+            "ray {i}: occlusion differs"
+        );
+        let (a, b) = (
+            closest_hit(&mesh, o, d, tmin, 100.0),
+            bvh.closest_hit(o, d, tmin, 100.0),
+        );
+        assert_eq!(
+            a.map(|h| h.t),
+            b.map(|h| h.t),
+            "ray {i}: closest hit differs"
+        );
+        if let (Some(a), Some(b)) = (a, b) {
+            hits += 1;
+            // Another triangle only as a tie at the same t.
+            if a.tri != b.tri {
+                assert_eq!(a.t, b.t);
+            } else {
+                assert_eq!(a.bary, b.bary);
+            }
+        }
+    }
+    assert!(hits > 2700, "{hits} hits");
+}
+
+#[test]
+fn light_coverage_counts_the_views_that_see_each_original_light() {
+    use relit_engine::cpu::MeshBvh;
+    use relit_engine::scene::coverage::coverage;
+    use relit_engine::scene::{Camera, Light, LightShape, View, MIN_VIEWS_PER_LIGHT};
+    // A wall in the plane z = 0 (x, y in [-2, 2]); cameras at z = 3 look at it.
+    let mesh = Mesh {
+        positions: vec![
+            [-2.0, -2.0, 0.0],
+            [2.0, -2.0, 0.0],
+            [2.0, 2.0, 0.0],
+            [-2.0, 2.0, 0.0],
+        ],
+        colors: None,
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+    };
+    let bvh = MeshBvh::new(&mesh);
+    let cam =
+        |x: f32, look: Vec3| Camera::look_at(Vec3::new(x, 0.0, 3.0), look, Vec3::Y, 64, 48, 40.0);
+    let views: Vec<View> = [
+        cam(-1.0, Vec3::new(0.0, 0.0, 1.0)),
+        cam(0.0, Vec3::new(0.0, 0.0, 1.0)),
+        cam(1.0, Vec3::new(0.0, 0.0, 1.0)),
+        // Looks away from the wall: sees nothing.
+        cam(0.0, Vec3::new(0.0, 0.0, 6.0)),
+    ]
+    .into_iter()
+    .enumerate()
+    .map(|(i, camera)| View {
+        name: format!("v{i}"),
+        image: format!("v{i}.exr").into(),
+        camera,
+    })
+    .collect();
+    let quad = |z: f32, facing: f32| LightShape::Quad {
+        corner: Vec3::new(-0.2, -0.2, z),
+        edge_u: Vec3::new(0.4 * facing, 0.0, 0.0),
+        edge_v: Vec3::new(0.0, 0.4, 0.0),
+    };
+    let light = |name: &str, shape, original| Light {
+        name: name.into(),
+        shape,
+        radiance: [1.0; 3],
+        original,
+    };
+    let lights = vec![
+        // Behind the wall, facing the cameras: the wall hides it.
+        light("behind", quad(-1.0, 1.0), true),
+        // In front of the wall, facing the cameras: the three that look at it see it whole.
+        light("front", quad(1.0, 1.0), true),
+        // In front, but emitting toward the wall: no camera is on its emitting side.
+        light("backwards", quad(1.0, -1.0), true),
+        // A disk in front, facing the cameras.
+        light(
+            "disk",
+            LightShape::Disk {
+                center: Vec3::new(0.0, 0.0, 1.0),
+                normal: Vec3::Z,
+                radius: 0.2,
+            },
+            true,
+        ),
+        // An added light is not measured.
+        light("added", quad(1.0, 1.0), false),
+    ];
+    let c = coverage(&bvh, &views, &lights);
+    let names: Vec<&str> = c.iter().map(|l| l.name.as_str()).collect();
+    assert_eq!(names, ["behind", "front", "backwards", "disk"]);
+    let by = |n: &str| c.iter().find(|l| l.name == n).unwrap();
+    assert_eq!(by("behind").views(), 0);
+    assert_eq!(by("backwards").views(), 0);
+    for n in ["front", "disk"] {
+        let l = by(n);
+        assert_eq!(l.view_names(), ["v0", "v1", "v2"], "{n}");
+        assert!(
+            l.seen_by.iter().all(|s| s.visible == 1.0),
+            "{n}: {:?}",
+            l.seen_by
+        );
+        assert_eq!(l.total_views, 4);
+        assert!(l.warning().is_none());
+    }
+    let w = by("behind")
+        .warning()
+        .expect("a warning for a light no view sees");
+    assert!(
+        w.contains("'behind'")
+            && w.contains("0 of 4")
+            && w.contains(&format!("fewer than {MIN_VIEWS_PER_LIGHT}")),
+        "{w}"
+    );
+    assert_eq!(
+        by("front").summary(),
+        "light front: seen by 3 of 4 views (v0 100%, v1 100%, v2 100%)"
+    );
+    // Half hidden: a light straddling the wall's edge (x = 2) seen from straight ahead.
+    let edge = vec![light(
+        "edge",
+        LightShape::Quad {
+            corner: Vec3::new(1.8, -0.2, -1.0),
+            edge_u: Vec3::new(0.4, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.4, 0.0),
+        },
+        true,
+    )];
+    let straight = [View {
+        name: "s".into(),
+        image: "s.exr".into(),
+        camera: Camera::look_at(
+            Vec3::new(2.0, 0.0, 3.0),
+            Vec3::new(2.0, 0.0, -1.0),
+            Vec3::Y,
+            64,
+            48,
+            40.0,
+        ),
+    }];
+    let e = &coverage(&bvh, &straight, &edge)[0];
+    assert_eq!(e.views(), 1);
+    assert_eq!(e.seen_by[0].visible, 0.5);
+}

@@ -5,6 +5,8 @@
 // Gaussian in the distance of the neighbour to this pixel's tangent plane (relative to depth, so
 // slanted surfaces are not cut), and a power of the normals' agreement: the filter averages
 // along surfaces and stops at their edges.
+// With `with_base`, the input is one noisy part of a map `base` (E_add's indirect light, whose
+// direct part keeps its sharp shadows): out = base − input + filtered input.
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
@@ -14,10 +16,11 @@ layout(set = 0, binding = 0) readonly buffer GPos { vec4 gpos[]; };   // all vie
 layout(set = 0, binding = 1) readonly buffer GNrm { vec4 gnrm[]; };
 layout(set = 0, binding = 2) readonly buffer In { vec4 e_in[]; };     // this view
 layout(set = 0, binding = 3) writeonly buffer Out { vec4 e_out[]; };
+layout(set = 0, binding = 4) readonly buffer Base { vec4 e_base[]; };  // read when with_base
 
 layout(push_constant) uniform Push {
     uint view; uint width; uint height; int radius;
-    float sigma_px; float sigma_depth; float normal_power; float pad;
+    float sigma_px; float sigma_depth; float normal_power; uint with_base;
 } pc;
 
 void main() {
@@ -27,7 +30,9 @@ void main() {
     uint base = pc.view * npix;
     vec4 c = gpos[base + p];
     // Pixels whose rays all missed a view get their estimate from the neighbours.
-    if (c.w <= 0.0) { e_out[p] = e_in[p]; return; }
+    vec4 whole = pc.with_base != 0u ? e_base[p] : vec4(0.0);
+    vec4 unfiltered = pc.with_base != 0u ? whole : e_in[p];
+    if (c.w <= 0.0) { e_out[p] = unfiltered; return; }
     vec3 n = gnrm[base + p].xyz;
     ivec2 xy = ivec2(p % pc.width, p / pc.width);
     vec3 sum = vec3(0.0);
@@ -48,5 +53,8 @@ void main() {
             wsum += w;
         }
     }
-    e_out[p] = wsum > 0.0 ? vec4(sum / wsum, max(e_in[p].w, 1.0)) : e_in[p];
+    if (wsum <= 0.0) { e_out[p] = unfiltered; return; }
+    vec3 f = sum / wsum;
+    e_out[p] = pc.with_base != 0u ? vec4(whole.rgb - e_in[p].rgb + f, max(whole.w, 1.0))
+                                  : vec4(f, max(e_in[p].w, 1.0));
 }

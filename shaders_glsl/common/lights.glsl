@@ -30,4 +30,26 @@ void light_sample(Light l, vec2 u, out vec3 p, out vec3 n, out float area) {
     }
 }
 
+// The unit normal of the emitting side.
+vec3 light_normal(Light l) {
+    return l.p0.w < 0.5 ? normalize(cross(l.p1.xyz, l.p2.xyz)) : normalize(l.p1.xyz);
+}
+
+// Distance along the ray (o, unit d) to the light's emitting side, or -1 when the ray misses it
+// or meets its back. A quad may be any parallelogram: its point is solved in (edge_u, edge_v).
+float light_hit(Light l, vec3 o, vec3 d) {
+    vec3 n = light_normal(l);
+    float dn = dot(d, n);
+    if (dn >= 0.0) return -1.0;
+    float t = dot(l.p0.xyz - o, n) / dn;
+    if (t <= 0.0) return -1.0;
+    vec3 q = o + t * d - l.p0.xyz;
+    if (l.p0.w >= 0.5) return dot(q, q) <= l.p2.x * l.p2.x ? t : -1.0;
+    vec3 u = l.p1.xyz, v = l.p2.xyz;
+    float uu = dot(u, u), uv = dot(u, v), vv = dot(v, v), qu = dot(q, u), qv = dot(q, v);
+    float det = uu * vv - uv * uv;
+    float a = (qu * vv - qv * uv) / det, b = (qv * uu - qu * uv) / det;
+    return (a >= 0.0 && a <= 1.0 && b >= 0.0 && b <= 1.0) ? t : -1.0;
+}
+
 #endif

@@ -320,6 +320,13 @@ fn bake_bench(
         vk::BufferUsageFlags::STORAGE_BUFFER,
         MemoryLocation::GpuOnly,
     )?;
+    let ind = Buffer::new(
+        &gpu,
+        "indirect",
+        npix * 16,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        MemoryLocation::GpuOnly,
+    )?;
     let albedo: Vec<[f32; 4]> = vec![[0.5, 0.5, 0.5, 1.0]; scene.mesh.positions.len()];
     let ab = Buffer::from_slice(
         &gpu,
@@ -328,7 +335,7 @@ fn bake_bench(
         &albedo,
     )?;
     let (si, mi, ai) = (
-        SourceIrradiance::new(&gpu)?,
+        SourceIrradiance::new(&gpu, &scene.lights)?,
         Mirror::new(&gpu)?,
         AddedIrradiance::new(&gpu)?,
     );
@@ -361,19 +368,25 @@ fn bake_bench(
         t_m += timed(&gpu, "m_src", |cmd| mi.record(cmd, &mesh, &views, v, &out))?;
         if let Some(l) = &light {
             t_a += timed(&gpu, "e_add", |cmd| {
-                ai.record(cmd, &mesh, &views, &ab, v, l, ap, &out)
+                ai.record(cmd, &mesh, &views, &ab, v, l, ap, &out, &ind)
             })?;
         }
     }
     let per = |ms: f64| ms / n as f64 * 1e-3;
     let rate = |rays: u64, ms: f64| rays as f64 * n as f64 / (ms * 1e-3) * 1e-6;
-    let rays_s = npix * p.irradiance_samples as u64;
+    // Declared original lights add one shadow ray per sample (next-event estimation).
+    let per_sample = if scene.lights.iter().any(|l| l.original) {
+        2
+    } else {
+        1
+    };
+    let rays_s = npix * p.irradiance_samples as u64 * per_sample;
     let rays_a = npix * p.added_samples as u64 * (2 * p.bounces as u64 + 1);
     println!(
         "source irradiance: {:.2} s/view, {:.3} M rays/s ({} rays/px)",
         per(t_s),
         rate(rays_s, t_s),
-        p.irradiance_samples
+        p.irradiance_samples as u64 * per_sample
     );
     println!(
         "mirror:            {:.3} s/view, {:.3} M rays/s (1 ray/px)",

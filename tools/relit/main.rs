@@ -191,7 +191,8 @@ enum FormatArg {
 
 #[derive(Subcommand)]
 enum SceneCmd {
-    /// Load a scene in any format (scene.json, COLMAP text, SIBR) and print a summary.
+    /// Load a scene in any format (scene.json, COLMAP text, SIBR) and print a summary, with how
+    /// many input views see each original light (a warning when fewer than 3 do).
     Check {
         dir: PathBuf,
         /// Check headers only; do not decode every image.
@@ -412,6 +413,12 @@ fn scene_check(dir: &std::path::Path, quick: bool) -> Result<()> {
             l.radiance
         );
     }
+    // The proxy mesh is loaded in both modes, so --quick checks coverage too.
+    let coverage = scene::light_coverage(&s);
+    for c in &coverage {
+        println!("{}", c.summary());
+    }
+    print_coverage_warnings(&coverage);
     println!("presets: {}", s.presets.len());
     for p in &s.presets {
         println!(
@@ -430,6 +437,13 @@ fn scene_check(dir: &std::path::Path, quick: bool) -> Result<()> {
     Ok(())
 }
 
+/// The warnings for original lights too few input views see, on stderr.
+fn print_coverage_warnings(coverage: &[scene::LightCoverage]) {
+    for w in coverage.iter().filter_map(|c| c.warning()) {
+        eprintln!("{w}");
+    }
+}
+
 fn bake(
     dir: &std::path::Path,
     p: &relit_engine::bake::BakeParams,
@@ -437,6 +451,7 @@ fn bake(
     opts: &GpuOptions,
 ) -> Result<()> {
     let scene = Scene::load(dir)?;
+    print_coverage_warnings(&scene::light_coverage(&scene));
     let gpu = open_gpu(opts)?;
     let t0 = std::time::Instant::now();
     let mut bars: Vec<(String, indicatif::ProgressBar)> = Vec::new();
@@ -485,25 +500,16 @@ fn bake(
     if eval && report.albedo_mesh {
         let a = relit_engine::bake::accuracy::evaluate(&gpu, &scene, p, &report.cache)?;
         println!(
-            "accuracy against ground truth ({} views; median relative error, pixels):",
+            "accuracy against ground truth ({} views; per pixel: median relative error, median ratio relit/truth):",
             a.views
         );
-        println!(
-            "  E_src vs true irradiance:   {:.3} ({} px)",
-            a.e_src.0, a.e_src.1
-        );
-        println!(
-            "  albedo mesh vs true albedo: {:.3} ({} px)",
-            a.albedo.0, a.albedo.1
-        );
-        if a.m_src.1 > 0 {
-            println!(
-                "  M_src vs true mirror image: {:.3} ({} px)",
-                a.m_src.0, a.m_src.1
-            );
+        println!("  E_src vs true irradiance:   {}", a.e_src);
+        println!("  albedo mesh vs true albedo: {}", a.albedo);
+        if a.m_src.pixels > 0 {
+            println!("  M_src vs true mirror image: {}", a.m_src);
         }
-        for (l, e, n) in &a.e_add {
-            println!("  E_add {l} vs path tracer:  {e:.3} ({n} px)");
+        for (l, e) in &a.e_add {
+            println!("  E_add {l} vs path tracer:  {e}");
         }
     }
     Ok(())

@@ -7,7 +7,8 @@
 //!
 //! Compared per pixel, luminance, where the proxy and true surfaces agree (camera depth within
 //! 2%), ρ > 0.05 and the pixel is not a light (O*_diffuse luminance < 5). Reported as median
-//! relative errors |estimate − truth| / truth.
+//! relative errors |estimate − truth| / truth, and as the median ratio estimate / truth: the
+//! error bounds its size, the ratio its sign (a bias that a symmetric error hides).
 
 use std::path::Path;
 use std::sync::Arc;
@@ -21,14 +22,44 @@ use crate::gpu::{Gpu, RayScene};
 use crate::scene::image::load_rgb;
 use crate::scene::Scene;
 
+/// One quantity compared per pixel.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Stat {
+    /// Median of |estimate − truth| / truth.
+    pub error: f64,
+    /// Median of estimate / truth (1 = unbiased).
+    pub ratio: f64,
+    pub pixels: usize,
+}
+
+impl Stat {
+    /// From (estimate, truth) pairs.
+    fn of(pairs: &[(f64, f64)]) -> Stat {
+        Stat {
+            error: median(pairs.iter().map(|(e, t)| (e - t).abs() / t).collect()),
+            ratio: median(pairs.iter().map(|(e, t)| e / t).collect()),
+            pixels: pairs.len(),
+        }
+    }
+}
+
+impl std::fmt::Display for Stat {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(
+            f,
+            "error {:.3}, ratio {:.3} ({} px)",
+            self.error, self.ratio, self.pixels
+        )
+    }
+}
+
 #[derive(Debug, Default, Clone)]
 pub struct Accuracy {
-    /// (median relative error, pixels compared)
-    pub e_src: (f64, usize),
-    pub albedo: (f64, usize),
+    pub e_src: Stat,
+    pub albedo: Stat,
     /// Per added light with ground truth.
-    pub e_add: Vec<(String, f64, usize)>,
-    pub m_src: (f64, usize),
+    pub e_add: Vec<(String, Stat)>,
+    pub m_src: Stat,
     pub views: usize,
 }
 
@@ -71,7 +102,7 @@ pub fn evaluate(
     let npix = d.pixels();
     let mut acc = Accuracy::default();
     let (mut es, mut al, mut ms) = (Vec::new(), Vec::new(), Vec::new());
-    let mut ea: Vec<(String, Vec<f64>)> = scene
+    let mut ea: Vec<(String, Vec<(f64, f64)>)> = scene
         .lights
         .iter()
         .filter(|l| !l.original)
@@ -125,13 +156,14 @@ pub fn evaluate(
             if let Some((ours, t)) = &mirror {
                 let (o, t) = (lum([ours[p][0], ours[p][1], ours[p][2]]), lum(t.pixels[p]));
                 if o > 0.0 && t > 1e-3 {
-                    ms.push(((o - t).abs() / t) as f64);
+                    ms.push((o as f64, t as f64));
                 }
             }
             if e_true > 1e-4 {
-                es.push(
-                    ((lum([esrc[p][0], esrc[p][1], esrc[p][2]]) - e_true).abs() / e_true) as f64,
-                );
+                es.push((
+                    lum([esrc[p][0], esrc[p][1], esrc[p][2]]) as f64,
+                    e_true as f64,
+                ));
             }
             if d.tri[gi] > 0 {
                 let t = geom.triangles[(d.tri[gi] - 1) as usize];
@@ -155,7 +187,7 @@ pub fn evaluate(
                         }
                     }
                     if seen {
-                        al.push(((lum(est) - r).abs() / r) as f64);
+                        al.push((lum(est) as f64, r as f64));
                     }
                 }
             }
@@ -163,21 +195,21 @@ pub fn evaluate(
                 if let Some((ours, g)) = e {
                     let t = std::f32::consts::PI * lum(g.pixels[p]) / r;
                     if t > 1e-3 {
-                        ea[k].1.push(
-                            ((lum([ours[p][0], ours[p][1], ours[p][2]]) - t).abs() / t) as f64,
-                        );
+                        ea[k]
+                            .1
+                            .push((lum([ours[p][0], ours[p][1], ours[p][2]]) as f64, t as f64));
                     }
                 }
             }
         }
     }
-    acc.e_src = (median(es.clone()), es.len());
-    acc.albedo = (median(al.clone()), al.len());
-    acc.m_src = (median(ms.clone()), ms.len());
+    acc.e_src = Stat::of(&es);
+    acc.albedo = Stat::of(&al);
+    acc.m_src = Stat::of(&ms);
     acc.e_add = ea
         .into_iter()
         .filter(|(_, v)| !v.is_empty())
-        .map(|(n, v)| (n, median(v.clone()), v.len()))
+        .map(|(n, v)| (n, Stat::of(&v)))
         .collect();
     Ok(acc)
 }

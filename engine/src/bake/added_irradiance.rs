@@ -48,6 +48,58 @@ impl GpuLight {
         }
     }
 
+    /// The unit normal of the emitting side (`light_normal`).
+    pub fn normal(&self) -> Vec3 {
+        let v = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
+        if self.p0[3] < 0.5 {
+            v(self.p1).cross(v(self.p2)).normalize()
+        } else {
+            v(self.p1).normalize()
+        }
+    }
+
+    /// CPU mirror of `light_hit`: distance along (o, unit d) to the emitting side.
+    pub fn hit(&self, o: Vec3, d: Vec3) -> Option<f32> {
+        let v = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
+        let n = self.normal();
+        let dn = d.dot(n);
+        if dn >= 0.0 {
+            return None;
+        }
+        let t = (v(self.p0) - o).dot(n) / dn;
+        if t <= 0.0 {
+            return None;
+        }
+        let q = o + t * d - v(self.p0);
+        if self.p0[3] >= 0.5 {
+            return (q.dot(q) <= self.p2[0] * self.p2[0]).then_some(t);
+        }
+        let (u, w) = (v(self.p1), v(self.p2));
+        let (uu, uw, ww, qu, qw) = (u.dot(u), u.dot(w), w.dot(w), q.dot(u), q.dot(w));
+        let det = uu * ww - uw * uw;
+        let (a, b) = ((qu * ww - qw * uw) / det, (qw * uu - qu * uw) / det);
+        ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
+    }
+
+    /// CPU mirror of `light_direct` (common/nee.glsl): direct irradiance at x from one sample.
+    pub fn direct(&self, mesh: &Mesh, x: Vec3, n: Vec3, u: [f32; 2], lift: f32) -> Vec3 {
+        let (lp, ln, area) = self.sample(u);
+        let w = lp - x;
+        let d2 = w.length_squared();
+        let w = w / d2.sqrt();
+        let (cx, cl) = (n.dot(w), -ln.dot(w));
+        if cx <= 0.0 || cl <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let o = x + n * 1e-3;
+        let e = lp + ln * lift - o;
+        let de = e.length();
+        if crate::cpu::occluded(mesh, o, e / de, 1e-3, de - 2e-3) {
+            return Vec3::ZERO;
+        }
+        Vec3::from_slice(&self.radiance[..3]) * (cx * cl * area / d2)
+    }
+
     /// CPU mirror of `light_sample`: point, normal, area.
     pub fn sample(&self, u: [f32; 2]) -> (Vec3, Vec3, f32) {
         let v = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
@@ -106,7 +158,8 @@ impl AddedIrradiance {
         })
     }
 
-    /// Records E_add of `view` for `light` into `out` (vec4 per pixel). `albedo`: per-vertex vec4.
+    /// Records E_add of `view` for `light` into `out` (vec4 per pixel) and its indirect part
+    /// alone into `indirect`. `albedo`: per-vertex vec4.
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
@@ -118,6 +171,7 @@ impl AddedIrradiance {
         light: &GpuLight,
         p: AddedParams,
         out: &Buffer,
+        indirect: &Buffer,
     ) -> Result<()> {
         let push = Push {
             view,
@@ -135,6 +189,7 @@ impl AddedIrradiance {
             (6, Bind::Buffer(&mesh.indices)),
             (7, Bind::Buffer(albedo)),
             (8, Bind::Buffer(out)),
+            (9, Bind::Buffer(indirect)),
         ];
         binds.extend(views.binds(1));
         self.pipeline.dispatch(
@@ -145,6 +200,8 @@ impl AddedIrradiance {
         )
     }
 
+    /// Runs one view: (E_add, its indirect part).
+    #[allow(clippy::too_many_arguments)]
     pub fn run(
         &self,
         mesh: &RayScene,
@@ -153,14 +210,29 @@ impl AddedIrradiance {
         view: u32,
         light: &GpuLight,
         p: AddedParams,
-    ) -> Result<Vec<[f32; 4]>> {
-        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
-            self.record(cmd, mesh, views, albedo, view, light, p, out)
-        })
+    ) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+        let gpu = &self.pipeline.gpu;
+        let n = (views.width * views.height) as u64;
+        let ind = Buffer::new(
+            gpu,
+            "e_add indirect",
+            n * 16,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            crate::gpu::MemoryLocation::GpuOnly,
+        )?;
+        let total = super::views::run_pixels(gpu, views, |cmd, out| {
+            self.record(cmd, mesh, views, albedo, view, light, p, out, &ind)
+        })?;
+        let mut ind: Vec<[f32; 4]> = ind.download_vec()?;
+        ind.truncate(n as usize);
+        Ok((total, ind))
     }
 }
 
-/// CPU reference of the same path tracer.
+/// Bounces after which Russian roulette may end a path (as in the shader).
+pub const RR_START: u32 = 2;
+
+/// CPU reference of the same path tracer: (E_add, its indirect part).
 pub fn reference(
     mesh: &Mesh,
     d: &ViewData,
@@ -168,35 +240,26 @@ pub fn reference(
     view: usize,
     light: &GpuLight,
     p: AddedParams,
-) -> Vec<[f32; 4]> {
+) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
     let npix = d.pixels();
-    let radiance = Vec3::new(light.radiance[0], light.radiance[1], light.radiance[2]);
-    let direct = |x: Vec3, n: Vec3, u: [f32; 2]| {
-        let (lp, ln, area) = light.sample(u);
-        let w = lp - x;
-        let d2 = w.length_squared();
-        let dist = d2.sqrt();
-        let w = w / dist;
-        let (cx, cl) = (n.dot(w), -ln.dot(w));
-        if cx <= 0.0 || cl <= 0.0 || crate::cpu::occluded(mesh, x + n * 1e-3, w, 1e-3, dist - 2e-3)
-        {
-            return Vec3::ZERO;
-        }
-        radiance * (cx * cl * area / d2)
-    };
     (0..npix)
         .map(|px| {
             let gi = view * npix + px;
             if d.pos[gi][3] <= 0.0 {
-                return [0.0; 4];
+                return ([0.0; 4], [0.0; 4]);
             }
             let n0 = facing_normal(d, gi, view);
-            let mut sum = Vec3::ZERO;
+            let (mut sum, mut dir0) = (Vec3::ZERO, Vec3::ZERO);
             for s in 0..p.samples {
                 let (mut x, mut n, mut thr) = (Vec3::from_slice(&d.pos[gi][..3]), n0, Vec3::ONE);
                 for b in 0..=p.bounces {
                     let k = s * 64 + 2 * b;
-                    sum += thr * direct(x, n, rand2([gi as u32, k, p.seed]));
+                    let e = thr * light.direct(mesh, x, n, rand2([gi as u32, k, p.seed]), 0.0);
+                    if b == 0 {
+                        dir0 += e;
+                    } else {
+                        sum += e;
+                    }
                     if b == p.bounces {
                         break;
                     }
@@ -216,10 +279,17 @@ pub fn reference(
                         + h.bary[0] * a(t[1])
                         + h.bary[1] * a(t[2]);
                     thr *= rho.clamp(Vec3::ZERO, Vec3::ONE);
+                    if b + 1 >= RR_START {
+                        let q = thr.max_element().min(0.95);
+                        if rand2([gi as u32, k + 1, !p.seed])[0] >= q {
+                            break;
+                        }
+                        thr /= q;
+                    }
                 }
             }
-            let e = sum / p.samples as f32;
-            [e.x, e.y, e.z, 1.0]
+            let (e, i) = ((dir0 + sum) / p.samples as f32, sum / p.samples as f32);
+            ([e.x, e.y, e.z, 1.0], [i.x, i.y, i.z, 1.0])
         })
-        .collect()
+        .unzip()
 }

@@ -39,7 +39,7 @@ struct Push {
     sigma_px: f32,
     sigma_depth: f32,
     normal_power: f32,
-    pad: f32,
+    with_base: u32,
 }
 
 pub struct Denoise {
@@ -53,7 +53,9 @@ impl Denoise {
         })
     }
 
-    /// Records the filtering of `input` (this view's map) into `out`.
+    /// Records the filtering of `input` (this view's map) into `out`. With `base`, `input` is
+    /// the noisy part of the map `base`: out = base − input + filtered input.
+    #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         cmd: vk::CommandBuffer,
@@ -61,6 +63,7 @@ impl Denoise {
         view: u32,
         p: DenoiseParams,
         input: &Buffer,
+        base: Option<&Buffer>,
         out: &Buffer,
     ) -> Result<()> {
         let push = Push {
@@ -71,13 +74,14 @@ impl Denoise {
             sigma_px: p.sigma_px,
             sigma_depth: p.sigma_depth,
             normal_power: p.normal_power,
-            pad: 0.0,
+            with_base: base.is_some() as u32,
         };
         let binds = [
             (0, Bind::Buffer(&views.pos)),
             (1, Bind::Buffer(&views.nrm)),
             (2, Bind::Buffer(input)),
             (3, Bind::Buffer(out)),
+            (4, Bind::Buffer(base.unwrap_or(input))),
         ];
         self.pipeline.dispatch(
             cmd,
@@ -93,14 +97,13 @@ impl Denoise {
         view: u32,
         p: DenoiseParams,
         input: &[[f32; 4]],
+        base: Option<&[[f32; 4]]>,
     ) -> Result<Vec<[f32; 4]>> {
         let gpu = &self.pipeline.gpu;
-        let ib = Buffer::from_slice(
-            gpu,
-            "denoise in",
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            input,
-        )?;
+        let up =
+            |name, data| Buffer::from_slice(gpu, name, vk::BufferUsageFlags::STORAGE_BUFFER, data);
+        let ib = up("denoise in", input)?;
+        let bb = base.map(|b| up("denoise base", b)).transpose()?;
         let ob = Buffer::new(
             gpu,
             "denoise out",
@@ -109,7 +112,7 @@ impl Denoise {
             MemoryLocation::GpuOnly,
         )?;
         let mut res = Ok(());
-        gpu.submit(|cmd| res = self.record(cmd, views, view, p, &ib, &ob))?;
+        gpu.submit(|cmd| res = self.record(cmd, views, view, p, &ib, bb.as_ref(), &ob))?;
         res?;
         let mut v: Vec<[f32; 4]> = ob.download_vec()?;
         v.truncate(input.len());
@@ -118,14 +121,21 @@ impl Denoise {
 }
 
 /// CPU reference.
-pub fn reference(d: &ViewData, view: usize, p: DenoiseParams, input: &[[f32; 4]]) -> Vec<[f32; 4]> {
+pub fn reference(
+    d: &ViewData,
+    view: usize,
+    p: DenoiseParams,
+    input: &[[f32; 4]],
+    with_base: Option<&[[f32; 4]]>,
+) -> Vec<[f32; 4]> {
     let (w, h) = (d.width as i32, d.height as i32);
     let base = view * d.pixels();
     (0..d.pixels())
         .map(|pi| {
+            let unfiltered = with_base.map_or(input[pi], |b| b[pi]);
             let c = d.pos[base + pi];
             if c[3] <= 0.0 {
-                return input[pi];
+                return unfiltered;
             }
             let n = Vec3::from_slice(&d.nrm[base + pi][..3]);
             let (x, y) = (pi as i32 % w, pi as i32 / w);
@@ -154,10 +164,16 @@ pub fn reference(d: &ViewData, view: usize, p: DenoiseParams, input: &[[f32; 4]]
                 }
             }
             if wsum <= 0.0 {
-                return input[pi];
+                return unfiltered;
             }
-            let o = sum / wsum;
-            [o.x, o.y, o.z, input[pi][3].max(1.0)]
+            let f = sum / wsum;
+            match with_base {
+                Some(b) => {
+                    let o = Vec3::from_slice(&b[pi][..3]) - Vec3::from_slice(&input[pi][..3]) + f;
+                    [o.x, o.y, o.z, b[pi][3].max(1.0)]
+                }
+                None => [f.x, f.y, f.z, input[pi][3].max(1.0)],
+            }
         })
         .collect()
 }

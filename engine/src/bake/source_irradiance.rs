@@ -1,4 +1,6 @@
 //! Source irradiance `E_src_i` (§4.1.1, Fig. 3): `shaders_glsl/bake/source_irradiance.comp`.
+//! Declared original lights give their direct part by next-event estimation (the shader's
+//! header says how it joins the views' indirect part without counting light twice).
 
 use std::sync::Arc;
 
@@ -6,9 +8,14 @@ use glam::Vec3;
 
 use super::random::{cosine_dir, rand2};
 use super::views::{facing_normal, GpuViews, ViewData};
+use super::GpuLight;
 use crate::error::Result;
 use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
-use crate::scene::Mesh;
+use crate::scene::{Light, Mesh};
+
+/// Metres: a proxy hit this close to a declared light's plane, on a ray that crosses the
+/// light, is the light (`LIGHT_SKIN` in the shader); shadow rays end this far in front of it.
+pub const LIGHT_SKIN: f32 = 0.03;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -19,16 +26,45 @@ struct Push {
     nviews: u32,
     samples: u32,
     seed: u32,
+    nlights: u32,
 }
 
 pub struct SourceIrradiance {
     pipeline: Pipeline,
+    /// The scene's declared original lights (one zero light when there are none: Vulkan has
+    /// no empty buffers).
+    lights: Buffer,
+    nlights: u32,
+}
+
+/// The declared original lights of `lights`, as the shader reads them.
+pub fn original_lights(lights: &[Light]) -> Vec<GpuLight> {
+    lights
+        .iter()
+        .filter(|l| l.original)
+        .map(GpuLight::new)
+        .collect()
 }
 
 impl SourceIrradiance {
-    pub fn new(gpu: &Arc<Gpu>) -> Result<SourceIrradiance> {
+    /// `lights`: the scene's lights; the original ones among them are sampled directly.
+    pub fn new(gpu: &Arc<Gpu>, lights: &[Light]) -> Result<SourceIrradiance> {
+        let gl = original_lights(lights);
+        let nlights = gl.len() as u32;
+        let data = if gl.is_empty() {
+            vec![bytemuck::Zeroable::zeroed()]
+        } else {
+            gl
+        };
         Ok(SourceIrradiance {
             pipeline: Pipeline::compute(gpu, "bake/source_irradiance.comp")?,
+            lights: Buffer::from_slice(
+                gpu,
+                "original lights",
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                &data,
+            )?,
+            nlights,
         })
     }
 
@@ -51,8 +87,13 @@ impl SourceIrradiance {
             nviews: views.count,
             samples,
             seed,
+            nlights: self.nlights,
         };
-        let mut binds = vec![(0, Bind::Accel(mesh.tlas.raw)), (5, Bind::Buffer(out))];
+        let mut binds = vec![
+            (0, Bind::Accel(mesh.tlas.raw)),
+            (5, Bind::Buffer(out)),
+            (6, Bind::Buffer(&self.lights)),
+        ];
         binds.extend(views.binds(1));
         self.pipeline.dispatch(
             cmd,
@@ -91,9 +132,33 @@ impl SourceIrradiance {
     }
 }
 
+/// Whether the ray (o, d), whose proxy hit is `hit` (distance, point), meets a declared light
+/// first (`meets_light` in the shader).
+fn meets_light(lights: &[GpuLight], o: Vec3, d: Vec3, hit: Option<(f32, Vec3)>) -> bool {
+    lights.iter().any(|l| {
+        let Some(tl) = l.hit(o, d) else {
+            return false;
+        };
+        match hit {
+            None => true,
+            Some((t, y)) => {
+                tl <= t || (y - Vec3::from_slice(&l.p0[..3])).dot(l.normal()).abs() < LIGHT_SKIN
+            }
+        }
+    })
+}
+
 /// CPU reference of the same estimator (same random numbers, brute-force ray casting).
-pub fn reference(mesh: &Mesh, d: &ViewData, view: usize, samples: u32, seed: u32) -> Vec<[f32; 4]> {
+pub fn reference(
+    mesh: &Mesh,
+    d: &ViewData,
+    lights: &[GpuLight],
+    view: usize,
+    samples: u32,
+    seed: u32,
+) -> Vec<[f32; 4]> {
     let npix = d.pixels();
+    let nl = lights.len() as u32;
     (0..npix)
         .map(|p| {
             let gi = view * npix + p;
@@ -102,25 +167,39 @@ pub fn reference(mesh: &Mesh, d: &ViewData, view: usize, samples: u32, seed: u32
             }
             let x = Vec3::from_slice(&d.pos[gi][..3]);
             let n = facing_normal(d, gi, view);
-            let (mut sum, mut valid) = (Vec3::ZERO, 0u32);
+            let (mut sum, mut direct, mut valid, mut on_light) =
+                (Vec3::ZERO, Vec3::ZERO, 0u32, 0u32);
             for s in 0..samples {
+                if nl > 0 {
+                    let l = s % nl;
+                    let per_light = ((samples - l + nl - 1) / nl) as f32;
+                    let u = rand2([gi as u32, s, !seed]);
+                    direct += lights[l as usize].direct(mesh, x, n, u, LIGHT_SKIN) / per_light;
+                }
                 let dir = cosine_dir(n, rand2([gi as u32, s, seed]));
                 let o = x + n * 1e-3;
-                let Some(h) = crate::cpu::closest_hit(mesh, o, dir, 1e-3, 1e4) else {
+                let hit =
+                    crate::cpu::closest_hit(mesh, o, dir, 1e-3, 1e4).map(|h| (h.t, o + dir * h.t));
+                if meets_light(lights, o, dir, hit) {
+                    on_light += 1;
+                    continue;
+                }
+                let Some((_, y)) = hit else {
                     continue;
                 };
-                let y = o + dir * h.t;
                 if let Some(q) = d.best_view(y, dir, view) {
                     sum += Vec3::from_slice(&d.img[q][..3]);
                     valid += 1;
                 }
             }
-            let e = if valid > 0 {
-                sum * std::f32::consts::PI / valid as f32
+            let mut e = if valid > 0 {
+                let n_s = samples as f32;
+                sum * std::f32::consts::PI / valid as f32 * (n_s - on_light as f32) / n_s
             } else {
                 Vec3::ZERO
             };
-            [e.x, e.y, e.z, valid as f32]
+            e += direct;
+            [e.x, e.y, e.z, (valid + on_light) as f32]
         })
         .collect()
 }

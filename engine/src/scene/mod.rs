@@ -4,6 +4,7 @@
 
 pub mod camera;
 mod colmap;
+pub mod coverage;
 pub mod image;
 mod json;
 pub mod mesh;
@@ -18,6 +19,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 pub use camera::{Camera, GpuCamera};
+pub use coverage::{light_coverage, LightCoverage, MIN_VIEWS_PER_LIGHT};
 pub use image::RgbImage;
 pub use json::{
     CameraDoc, ConditionDoc, MaterialDoc, ObjectDoc, Synthetic, TestViewDoc, SCENE_FILE,
@@ -86,6 +88,55 @@ impl LightShape {
                 edge_v,
             } => *corner + 0.5 * (*edge_u + *edge_v),
             LightShape::Disk { center, .. } => *center,
+        }
+    }
+    /// Unit normal of the emitting side.
+    pub fn normal(&self) -> Vec3 {
+        match self {
+            LightShape::Quad { edge_u, edge_v, .. } => edge_u.cross(*edge_v).normalize_or_zero(),
+            LightShape::Disk { normal, .. } => normal.normalize_or_zero(),
+        }
+    }
+    /// The centres of an `n × n` grid of cells on the light: on a quad its parameter grid, on
+    /// a disk the same grid through the concentric (Shirley–Chiu) square-to-disk map.
+    pub fn grid_points(&self, n: usize) -> Vec<Vec3> {
+        let cells = (0..n * n).map(|k| {
+            let s = ((k % n) as f32 + 0.5) / n as f32;
+            let t = ((k / n) as f32 + 0.5) / n as f32;
+            (s, t)
+        });
+        match self {
+            LightShape::Quad {
+                corner,
+                edge_u,
+                edge_v,
+            } => cells
+                .map(|(s, t)| *corner + s * *edge_u + t * *edge_v)
+                .collect(),
+            LightShape::Disk {
+                center,
+                normal,
+                radius,
+            } => {
+                let n = normal.normalize_or_zero();
+                let (t1, t2) = n.any_orthonormal_pair();
+                cells
+                    .map(|(s, t)| {
+                        let (a, b) = (2.0 * s - 1.0, 2.0 * t - 1.0);
+                        let (r, phi) = if a == 0.0 && b == 0.0 {
+                            (0.0, 0.0)
+                        } else if a.abs() > b.abs() {
+                            (a, std::f32::consts::FRAC_PI_4 * (b / a))
+                        } else {
+                            (
+                                b,
+                                std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (a / b),
+                            )
+                        };
+                        *center + *radius * r * (phi.cos() * t1 + phi.sin() * t2)
+                    })
+                    .collect()
+            }
         }
     }
 }

@@ -35,6 +35,9 @@ struct SceneArgs {
     /// Views sampled along the test path (ground truth only).
     #[arg(long, default_value_t = 8)]
     test_views: usize,
+    /// Capture views aimed at each original light (the first ones; at most half of --views).
+    #[arg(long, default_value_t = 3)]
+    light_views: usize,
 }
 
 impl SceneArgs {
@@ -45,6 +48,7 @@ impl SceneArgs {
             height: self.res.1,
             extra_lights: self.extra_lights,
             test_views: self.test_views,
+            light_views: self.light_views,
         }
     }
 }

@@ -4,10 +4,12 @@
 use std::collections::BTreeMap;
 
 use glam::{Vec2, Vec3};
+use relit_engine::cpu::MeshBvh;
+use relit_engine::scene::coverage::visible_fraction;
 use relit_engine::scene::synth::Rng;
 use relit_engine::scene::{Camera, Light, LightShape, MaterialDoc};
 
-use crate::prim::Prim;
+use crate::prim::{tessellate, Prim, TriMesh};
 use crate::texture::{self, Kind};
 
 /// What the proxy mesh does with an object (MVS fails on large textureless or glossy surfaces).
@@ -56,6 +58,11 @@ pub struct RoomOptions {
     pub height: u32,
     pub extra_lights: usize,
     pub test_views: usize,
+    /// Capture views aimed at each original light (as a person photographing a room takes a
+    /// few shots of its lamps): the first `n_lights · light_views` views (at most half of
+    /// `views`), so that E_src sees every light from several views
+    /// ([`relit_engine::scene::MIN_VIEWS_PER_LIGHT`]).
+    pub light_views: usize,
 }
 
 impl Default for RoomOptions {
@@ -66,6 +73,7 @@ impl Default for RoomOptions {
             height: 192,
             extra_lights: 6,
             test_views: 8,
+            light_views: 3,
         }
     }
 }
@@ -760,7 +768,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             Vec3::new(c.x, 0.7, c.y)
         })
         .collect();
-    let mut cameras = Vec::new();
+    let mut cameras = light_cameras(seed, o, &objects, &lights, size, &inside);
     let mut tries = 0;
     while cameras.len() < o.views && tries < 10_000 {
         tries += 1;
@@ -821,6 +829,101 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         path,
         path_fov_deg,
         test_cameras,
+    }
+}
+
+/// Capture cameras aimed at the original lights, `o.light_views` per light taken in turn (at most
+/// `o.views / 2` in all). Each stands in free space at 1.2–1.8 m, 1–4 m from the light on its
+/// emitting side and not at a grazing angle, and looks at a point 0.2–0.7 m below the light
+/// (jittered), so the frame shows the light and the walls and floor around it; a pose is kept
+/// only when the light's outline projects inside the image's central 80% and at least ¾ of
+/// its samples are unoccluded by the true geometry. Poses come from their own random stream, so
+/// the other cameras are those a scene without light views would have.
+fn light_cameras(
+    seed: u64,
+    o: &RoomOptions,
+    objects: &[Object],
+    lights: &[Light],
+    size: Vec3,
+    inside: &dyn Fn(Vec2) -> bool,
+) -> Vec<Camera> {
+    let originals: Vec<&Light> = lights.iter().filter(|l| l.original).collect();
+    let n = (originals.len() * o.light_views).min(o.views / 2);
+    if n == 0 {
+        return Vec::new();
+    }
+    let mut rng = Rng::new(seed.wrapping_mul(0xD1B5_4A32_D192_ED03) ^ 0x11_6874);
+    let mut geometry = TriMesh::default();
+    for obj in objects {
+        geometry.append(&tessellate(&obj.prim, crate::TRUE_EDGE));
+    }
+    let bvh = MeshBvh::new(&geometry.to_mesh());
+    let (hx, hz) = (size.x / 2.0, size.z / 2.0);
+    let mut cameras = Vec::new();
+    for k in 0..n {
+        let light = originals[k % originals.len()];
+        let (c, normal) = (light.shape.center(), light.shape.normal());
+        let outline = outline(&light.shape);
+        for _ in 0..2000 {
+            let p = Vec2::new(
+                rng.range(-hx + 0.35, hx - 0.35),
+                rng.range(-hz + 0.35, hz - 0.35),
+            );
+            if !inside(p) {
+                continue;
+            }
+            let pos = Vec3::new(p.x, rng.range(1.2, 1.8), p.y);
+            let to_cam = pos - c;
+            let dist = to_cam.length();
+            let cos = normal.dot(to_cam) / dist;
+            if !(1.0..=4.0).contains(&dist) || !(0.35..=0.9).contains(&cos) {
+                continue;
+            }
+            let target = c - Vec3::Y * rng.range(0.2, 0.7)
+                + Vec3::new(rng.range(-0.2, 0.2), 0.0, rng.range(-0.2, 0.2));
+            let fx = o.width as f32 * rng.range(0.5, 0.75);
+            let cam = Camera::look_at(pos, target, Vec3::Y, o.width, o.height, fx);
+            let (w, h) = (o.width as f32, o.height as f32);
+            let framed = outline.iter().all(|q| {
+                cam.project(*q).is_some_and(|(px, _)| {
+                    px.x > 0.1 * w && px.x < 0.9 * w && px.y > 0.1 * h && px.y < 0.9 * h
+                })
+            });
+            if framed && visible_fraction(&bvh, &cam, &light.shape) >= 0.75 {
+                cameras.push(cam);
+                break;
+            }
+        }
+    }
+    cameras
+}
+
+/// Points on a light's rim: a quad's corners, eight points around a disk.
+fn outline(shape: &LightShape) -> Vec<Vec3> {
+    match shape {
+        LightShape::Quad {
+            corner,
+            edge_u,
+            edge_v,
+        } => vec![
+            *corner,
+            *corner + *edge_u,
+            *corner + *edge_v,
+            *corner + *edge_u + *edge_v,
+        ],
+        LightShape::Disk {
+            center,
+            normal,
+            radius,
+        } => {
+            let (t1, t2) = normal.normalize_or_zero().any_orthonormal_pair();
+            (0..8)
+                .map(|i| {
+                    let a = i as f32 * std::f32::consts::FRAC_PI_4;
+                    *center + *radius * (a.cos() * t1 + a.sin() * t2)
+                })
+                .collect()
+        }
     }
 }
 

