@@ -11,13 +11,16 @@ use relit_engine::frame::{
 };
 use relit_engine::net::{NetConfig, NetKernels, Network, RandomParams, Storage};
 use relit_engine::scene::synth::{self, SynthOptions};
-use relit_engine::scene::{Camera, Mesh};
+use relit_engine::scene::{Camera, Light, LightShape, Mesh};
 
 struct Tiny {
     mesh: Mesh,
     cams: Vec<Camera>,
     host: HostMaps,
     novel: Camera,
+    /// Two added lights: "a", a small disk 0.8 m in front of the novel camera facing it, and
+    /// "b" near the ceiling.
+    lights: Vec<Light>,
 }
 
 /// Smooth, positive, position-dependent fields stand in for the baked maps (the passes only
@@ -80,11 +83,27 @@ fn tiny() -> Tiny {
     let eye = c0.center() + Vec3::new(0.15, -0.05, 0.1);
     let target = eye + c0.rotation.transpose() * Vec3::Z + Vec3::new(0.1, 0.0, 0.0);
     let novel = Camera::look_at(eye, target, Vec3::Y, 40, 30, 30.0);
+    let fwd = (target - eye).normalize();
+    let disk = |name: &str, center: Vec3, normal: Vec3| Light {
+        name: name.into(),
+        shape: LightShape::Disk {
+            center,
+            normal,
+            radius: 0.08,
+        },
+        radiance: [40.0, 30.0, 20.0],
+        original: false,
+    };
+    let lights = vec![
+        disk("a", eye + fwd * 0.8 + fwd.cross(Vec3::Y) * 0.1, -fwd),
+        disk("b", Vec3::new(0.5, 2.3, 0.5), Vec3::NEG_Y),
+    ];
     Tiny {
         mesh,
         cams,
         host,
         novel,
+        lights,
     }
 }
 
@@ -110,9 +129,15 @@ fn mismatch(gpu: &[[f32; 4]], cpu: &[[f32; 4]], tol: f32) -> (f32, f32) {
 
 /// A renderer without a network over exact maps, two added lights, one of them on.
 fn ulr_renderer(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>, t: &Tiny) -> (Renderer, Lighting) {
-    let lights = vec!["a".to_string(), "b".to_string()];
-    let scene =
-        FrameScene::from_parts(gpu, &t.mesh, &t.cams, &t.host, lights, MapFormat::Rgba32f).unwrap();
+    let scene = FrameScene::from_parts(
+        gpu,
+        &t.mesh,
+        &t.cams,
+        &t.host,
+        &t.lights,
+        MapFormat::Rgba32f,
+    )
+    .unwrap();
     let lighting = Lighting {
         intensities: vec![0.7, 0.0],
         alpha_dim: 0.4,
@@ -148,6 +173,7 @@ fn frame_passes_match_cpu_references() {
         intensities: &lighting.intensities,
         alpha_dim: lighting.alpha_dim,
         exclude: None,
+        emitters: &r.scene.emitters,
     };
     let dl = |buf: &relit_engine::gpu::Buffer, planes: usize| {
         let mut v: Vec<[f32; 4]> = buf.download_vec().unwrap();
@@ -225,12 +251,35 @@ fn frame_passes_match_cpu_references() {
     // ULR output: I_1 as linear HDR, display = exposure + sRGB (±1 code value).
     let hdr = r.hdr().unwrap();
     let ldr = r.ldr().unwrap();
+    // The lit added light "a" is drawn over the composite where the camera sees it.
+    let ulr: Vec<[f32; 3]> = (0..npix)
+        .map(|p| {
+            let c = comp[p];
+            if g.pos_depth[p][3] > 0.0 {
+                [c[0], c[1], c[2]]
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    let emitters = r.scene.emitters.clone();
+    let draw = |base: &[[f32; 3]]| {
+        output::reference_emitters(
+            &t.novel,
+            &g.pos_depth,
+            &emitters,
+            &lighting.intensities,
+            base,
+        )
+    };
+    let ulr_want = draw(&ulr);
+    let drawn = (0..npix).filter(|&p| ulr_want[p] != ulr[p]).count();
+    assert!(
+        (10..npix / 4).contains(&drawn),
+        "light a covers {drawn} pixels"
+    );
     for p in 0..npix {
-        let want = if g.pos_depth[p][3] > 0.0 {
-            comp[p]
-        } else {
-            [0.0; 4]
-        };
+        let want = ulr_want[p];
         for k in 0..3 {
             assert!((hdr[p][k] - want[k]).abs() <= 1e-6, "hdr pixel {p}");
         }
@@ -246,13 +295,14 @@ fn frame_passes_match_cpu_references() {
     r.render(&t.novel, &lighting, Mode::Ratio, 1.0, None)
         .unwrap();
     let hdr = r.hdr().unwrap();
-    let want = output::reference_ratio(&comp, &irr, npix);
+    let ratio: Vec<[f32; 3]> = output::reference_ratio(&comp, &irr, npix)
+        .into_iter()
+        .enumerate()
+        .map(|(p, w)| if g.pos_depth[p][3] > 0.0 { w } else { [0.0; 3] })
+        .collect();
+    let want = draw(&ratio);
     for p in 0..npix {
-        let w = if g.pos_depth[p][3] > 0.0 {
-            want[p]
-        } else {
-            [0.0; 3]
-        };
+        let w = want[p];
         for k in 0..3 {
             assert!(
                 (hdr[p][k] - w[k]).abs() <= 1e-5 * w[k].abs().max(1.0),
@@ -301,6 +351,7 @@ fn leave_one_out_excludes_the_view_from_every_pass() {
         intensities: &lighting.intensities,
         alpha_dim: lighting.alpha_dim,
         exclude: Some(0),
+        emitters: &r.scene.emitters,
     };
     let comp = b.composites().unwrap();
     let (bad, _) = mismatch(&comp, &reproject::reference(&inputs), 0.01);
@@ -329,7 +380,7 @@ fn network_mode_output_matches_network_on_the_frame_input() {
     let t = tiny();
     for storage in [Storage::F32, Storage::F16] {
         let scene =
-            FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, vec![], MapFormat::Rgba16f)
+            FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, &[], MapFormat::Rgba16f)
                 .unwrap();
         let mut cfg = NetConfig::paper(8);
         cfg.levels = 3;

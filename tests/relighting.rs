@@ -90,19 +90,18 @@ fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
     let a = accuracy::evaluate(&gpu, &scene, &params, &report.cache).unwrap();
     eprintln!("{a:?}");
     // Before next-event estimation of the declared lights, E_src was half the truth on such a
-    // scene (the direct light of a panel no view sees was dropped). Measured 1.00.
+    // scene (the direct light of a panel no view sees was dropped). Measured 0.992.
     assert!(
         (0.95..=1.05).contains(&a.e_src.ratio),
         "E_src biased: {:?}",
         a.e_src
     );
-    // Measured 0.92–0.93 (0.81 with black unseen vertices and 3 bounces; 1.05 with the
-    // original lights' white pixels in the albedo mesh): the bound catches those regressions;
-    // the 0.95 is not reached yet.
+    // Measured 0.950, error 0.091 (0.81 and 0.34 with black unseen vertices, 3 bounces and no
+    // filter; 1.05 with the original lights' white pixels in the albedo mesh).
     assert_eq!(a.e_add.len(), 1);
     let e_add = a.e_add[0].1;
     assert!(
-        (0.88..=1.05).contains(&e_add.ratio) && e_add.error < 0.2,
+        (0.9..=1.05).contains(&e_add.ratio) && e_add.error < 0.15,
         "E_add: {e_add:?}"
     );
     common::assert_no_validation_errors(&gpu);
@@ -110,7 +109,8 @@ fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
 
     // The added light alone (original lighting removed: α_dim = 1), ratio mode, vs Mitsuba's
     // diffuse render of that condition, median per-pixel luminance ratio over lit, non-emitter
-    // pixels. Measured 0.85–0.88 on both test views (1.7 when E_src lost the panel).
+    // pixels. Measured 0.913 and 0.878 (1.6–1.7 when E_src lost the panel): E_add's deficit
+    // and the pseudo-albedo's add up; the 0.9–1.1 is reached on one view of two.
     let path = dir.join("scene.json");
     let mut doc: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
@@ -137,6 +137,6 @@ fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
         );
         let m = median(ratios);
         eprintln!("{view}: ratio render / truth median {m:.3}");
-        assert!((0.8..=1.1).contains(&m), "{view}: median ratio {m:.3}");
+        assert!((0.85..=1.1).contains(&m), "{view}: median ratio {m:.3}");
     }
 }

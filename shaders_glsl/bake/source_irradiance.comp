@@ -10,6 +10,8 @@
 // round-robin over the lights); a cosine ray that meets a declared light counts as a ray of zero
 // indirect radiance, so no light is counted twice:
 //   E = Σ_l E_dir,l + π · mean(L over rays with a view) · (rays not on a light) / SAMPLES.
+// A view pixel on or beside a declared light (within LEAK_PX pixels: the image's pixel filter
+// spreads the emitter into its neighbours) is no radiance sample of the surface: dropped.
 #extension GL_EXT_ray_query : require
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
@@ -31,6 +33,18 @@ layout(push_constant) uniform Push {
 // A declared light sits on or just off the proxy (ceiling, wall): a hit within this distance of
 // its plane, where the ray also crosses the light, is the light.
 const float LIGHT_SKIN = 0.03;
+const float LEAK_PX = 2.0;
+
+// Whether the view pixel q (global index) shows, or bleeds from, a declared light.
+bool near_light(int q) {
+    vec4 g = gpos[q];
+    uint j = uint(q) / (pc.width * pc.height);
+    float margin = LEAK_PX * g.w / cams[j].intrinsics.x;
+    for (uint l = 0u; l < pc.nlights; ++l) {
+        if (light_near(lights[l], g.xyz, LIGHT_SKIN + margin, margin)) return true;
+    }
+    return false;
+}
 
 // Whether the ray (o, d) whose proxy hit is y at distance t (t < 0: no hit) meets a light first.
 bool meets_light(vec3 o, vec3 d, float t, vec3 y) {
@@ -72,7 +86,7 @@ void main() {
         if (meets_light(o, d, t, y)) { on_light += 1u; continue; }
         if (!hit) continue;
         int best_px = best_view(y, d, pc.view, pc.nviews, pc.width, pc.height);
-        if (best_px < 0) continue;
+        if (best_px < 0 || near_light(best_px)) continue;
         sum += images[best_px].rgb;
         valid += 1u;
     }

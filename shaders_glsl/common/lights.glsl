@@ -52,4 +52,20 @@ float light_hit(Light l, vec3 o, vec3 d) {
     return (a >= 0.0 && a <= 1.0 && b >= 0.0 && b <= 1.0) ? t : -1.0;
 }
 
+// Whether p lies on the light's outline grown by `margin` (metres), within `skin` of its plane.
+bool light_near(Light l, vec3 p, float skin, float margin) {
+    vec3 n = light_normal(l);
+    vec3 q = p - l.p0.xyz;
+    float h = dot(q, n);
+    if (abs(h) > skin) return false;
+    q -= h * n;
+    if (l.p0.w >= 0.5) return length(q) <= l.p2.x + margin;
+    vec3 u = l.p1.xyz, v = l.p2.xyz;
+    float uu = dot(u, u), uv = dot(u, v), vv = dot(v, v), qu = dot(q, u), qv = dot(q, v);
+    float det = uu * vv - uv * uv;
+    float a = (qu * vv - qv * uv) / det, b = (qv * uu - qu * uv) / det;
+    float mu = margin / sqrt(uu), mv = margin / sqrt(vv);
+    return a >= -mu && a <= 1.0 + mu && b >= -mv && b <= 1.0 + mv;
+}
+
 #endif

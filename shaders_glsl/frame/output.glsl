@@ -4,7 +4,11 @@
 // pseudo-albedo rule of eq. 5, I_1 / E_src · (E_add + E_src − E_rem) (E_src floored at 1e-4):
 // a diffuse relighting baseline that needs no network. Writes linear RGBA32F (EXR) and a display image:
 // exposure (a linear scale) then the sRGB transfer function, 8 bits (screen, PNG).
+// In every mode a lit added light in front of the surface is drawn with its radiance.
+#extension GL_EXT_scalar_block_layout : require
 #include "act_storage.glsl"
+#include "camera.glsl"
+#include "emitters.glsl"
 
 layout(local_size_x = 64) in;
 
@@ -15,7 +19,11 @@ layout(set = 0, binding = 16) readonly buffer Net { ACT4 o[]; };   // 6 channels
 layout(set = 0, binding = 17) writeonly buffer Hdr { vec4 hdr[]; };
 layout(set = 0, binding = 18) writeonly buffer Ldr { uint ldr[]; };
 
-layout(push_constant) uniform Push { uint width; uint height; uint mode; float exposure; } pc;
+layout(push_constant, scalar) uniform Push {
+    uint width; uint height; uint mode; float exposure;
+    Camera cam;      // the novel camera (for the rays towards the added lights)
+    uint nlights;
+} pc;
 
 const uint MODE_NETWORK = 0u;
 const uint MODE_ULR = 1u;
@@ -30,7 +38,9 @@ void main() {
     uint npix = pc.width * pc.height;
     if (p >= npix) return;
     vec3 c = vec3(0.0);
-    if (imageLoad(g_pos, ivec2(p % pc.width, p / pc.width)).w > 0.0) {
+    ivec2 xy = ivec2(p % pc.width, p / pc.width);
+    vec4 xp = imageLoad(g_pos, xy);
+    if (xp.w > 0.0) {
         if (pc.mode == MODE_NETWORK) {
             vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
             vec3 tmo = max(a.xyz + vec3(a.w, b.x, b.y), vec3(0.0));
@@ -42,6 +52,11 @@ void main() {
             c = vec3(comp[p].rgb) / max(es, vec3(1e-4)) * (irr[npix + p].rgb + es - irr[2u * npix + p].rgb);
         }
     }
+    vec3 eye = cam_center(pc.cam);
+    vec3 ray = normalize(cam_ray_dir(pc.cam, vec2(xy) + 0.5));
+    float t = xp.w > 0.0 ? distance(xp.xyz, eye) : 1e30;
+    vec3 le;
+    if (nearest_emitter(eye, ray, pc.nlights, t, le)) c = le;
     hdr[p] = vec4(c, 1.0);
     vec3 d = c * pc.exposure;
     uvec3 q = uvec3(round(vec3(srgb(d.r), srgb(d.g), srgb(d.b)) * 255.0));

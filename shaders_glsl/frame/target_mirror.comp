@@ -4,7 +4,8 @@
 // viewing direction onto y is best aligned with the reflected ray (among all views that see y):
 //   I_i / E_src_i · (E_add_i + E_src_i − E_rem_i),  E_rem_i = α_dim · E_src_i,
 // read at y's pixel in view i (nearest texel, as the depth test). E_src is floored at 1e-4
-// (W/m²) in the ratio. Output vec4: rgb, w = reflected distance |y − x| (0: no hit, no view).
+// (W/m²) in the ratio. A lit added light met before y is seen in the mirror: its radiance.
+// Output vec4: rgb, w = reflected distance |y − x| (0: no hit, no view).
 #extension GL_EXT_ray_query : require
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
@@ -12,11 +13,11 @@
 layout(local_size_x = 64) in;
 
 #include "frame.glsl"
+#include "emitters.glsl"
 
 layout(set = 0, binding = 7) uniform sampler2DArray tex_img;
 layout(set = 0, binding = 9) uniform sampler2DArray tex_esrc;
 layout(set = 0, binding = 10) uniform sampler2DArray tex_eadd;
-layout(set = 0, binding = 11) readonly buffer Intensity { float intensity[]; };
 layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
 layout(set = 0, binding = 13) writeonly buffer Out { vec4 mirror[]; };
 
@@ -40,8 +41,11 @@ void main() {
     rayQueryEXT rq;
     rayQueryInitializeEXT(rq, tlas, gl_RayFlagsOpaqueEXT, 0xFF, o, 1e-3, r, 1e4);
     while (rayQueryProceedEXT(rq)) {}
-    if (rayQueryGetIntersectionTypeEXT(rq, true) != gl_RayQueryCommittedIntersectionTriangleEXT) return;
-    float t = rayQueryGetIntersectionTEXT(rq, true);
+    bool hit = rayQueryGetIntersectionTypeEXT(rq, true) == gl_RayQueryCommittedIntersectionTriangleEXT;
+    float t = hit ? rayQueryGetIntersectionTEXT(rq, true) : 1e30;
+    vec3 le;
+    if (nearest_emitter(o, r, pc.nlights, t, le)) { mirror[p] = vec4(le, t); return; }
+    if (!hit) return;
     vec3 y = o + r * t;
     int q = best_view(y, r, pc.exclude, pc.nviews, pc.view_w, pc.view_h);
     if (q < 0) return;

@@ -81,6 +81,27 @@ impl GpuLight {
         ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
     }
 
+    /// CPU mirror of `light_near`: p on the outline grown by `margin`, within `skin` of the plane.
+    pub fn near(&self, p: Vec3, skin: f32, margin: f32) -> bool {
+        let v = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
+        let n = self.normal();
+        let mut q = p - v(self.p0);
+        let h = q.dot(n);
+        if h.abs() > skin {
+            return false;
+        }
+        q -= h * n;
+        if self.p0[3] >= 0.5 {
+            return q.length() <= self.p2[0] + margin;
+        }
+        let (u, w) = (v(self.p1), v(self.p2));
+        let (uu, uw, ww, qu, qw) = (u.dot(u), u.dot(w), w.dot(w), q.dot(u), q.dot(w));
+        let det = uu * ww - uw * uw;
+        let (a, b) = ((qu * ww - qw * uw) / det, (qw * uu - qu * uw) / det);
+        let (mu, mv) = (margin / uu.sqrt(), margin / ww.sqrt());
+        a >= -mu && a <= 1.0 + mu && b >= -mv && b <= 1.0 + mv
+    }
+
     /// CPU mirror of `light_direct` (common/nee.glsl): direct irradiance at x from one sample.
     pub fn direct(&self, mesh: &Mesh, x: Vec3, n: Vec3, u: [f32; 2], lift: f32) -> Vec3 {
         let (lp, ln, area) = self.sample(u);

@@ -17,6 +17,20 @@ use crate::scene::{Light, Mesh};
 /// light, is the light (`LIGHT_SKIN` in the shader); shadow rays end this far in front of it.
 pub const LIGHT_SKIN: f32 = 0.03;
 
+/// Pixels: a view pixel this close to a declared light carries some of its emission (the
+/// pixel filter spreads it), so it is no radiance sample of the surface (`LEAK_PX`).
+pub const LEAK_PX: f32 = 2.0;
+
+/// Whether view pixel `q` (global index) shows, or bleeds from, a declared light.
+fn near_light(d: &ViewData, lights: &[GpuLight], q: usize) -> bool {
+    let g = d.pos[q];
+    let margin = LEAK_PX * g[3] / d.cameras[q / d.pixels()].fx;
+    let p = Vec3::from_slice(&g[..3]);
+    lights
+        .iter()
+        .any(|l| l.near(p, LIGHT_SKIN + margin, margin))
+}
+
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct Push {
@@ -187,7 +201,10 @@ pub fn reference(
                 let Some((_, y)) = hit else {
                     continue;
                 };
-                if let Some(q) = d.best_view(y, dir, view) {
+                if let Some(q) = d
+                    .best_view(y, dir, view)
+                    .filter(|&q| !near_light(d, lights, q))
+                {
                     sum += Vec3::from_slice(&d.img[q][..3]);
                     valid += 1;
                 }

@@ -17,7 +17,7 @@ use glam::Vec3;
 
 pub use maps::{HostMaps, MapFormat, ViewMaps};
 
-use crate::bake::{run as bakerun, BakeParams, GpuViews, ViewData};
+use crate::bake::{run as bakerun, BakeParams, GpuLight, GpuViews, ViewData};
 use crate::error::{Error, Result};
 use crate::gpu::{
     bytes_of, full_barrier, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, RayScene, Sampler,
@@ -25,7 +25,7 @@ use crate::gpu::{
 };
 use crate::net::{Network, Storage, Tensor, INPUT_CHANNELS};
 use crate::raster::{Gbuffer, GbufferPass};
-use crate::scene::{image::load_rgb, Camera, Scene};
+use crate::scene::{image::load_rgb, Camera, Light, Scene};
 
 /// At most this many input views take part in one frame (`MAX_ACTIVE` in frame.glsl): the views
 /// whose cameras are nearest the novel camera.
@@ -141,6 +141,8 @@ pub struct RefInputs<'a> {
     pub alpha_dim: f32,
     /// The view left out of the frame (also by the target mirror).
     pub exclude: Option<u32>,
+    /// The added lights' shapes (drawn where seen, in the mirror too).
+    pub emitters: &'a [GpuLight],
 }
 
 impl RefInputs<'_> {
@@ -165,7 +167,10 @@ pub struct FrameScene {
     pub data: ViewData,
     pub views: GpuViews,
     pub maps: ViewMaps,
+    /// The added lights' names, in E_add layer order, and their shapes (drawn where seen).
     pub lights: Vec<String>,
+    pub emitters: Vec<GpuLight>,
+    emitter_buf: Buffer,
     pub sampler: Sampler,
 }
 
@@ -176,7 +181,7 @@ impl FrameScene {
         mesh: &crate::scene::Mesh,
         cameras: &[Camera],
         host: &HostMaps,
-        lights: Vec<String>,
+        lights: &[Light],
         format: MapFormat,
     ) -> Result<FrameScene> {
         FrameScene::build(
@@ -194,7 +199,7 @@ impl FrameScene {
         mesh: &crate::scene::Mesh,
         cameras: &[Camera],
         host: &HostMaps,
-        lights: Vec<String>,
+        lights: &[Light],
         maps: ViewMaps,
     ) -> Result<FrameScene> {
         let rs = RayScene::new(gpu, &mesh.positions, &mesh.triangles)?;
@@ -209,12 +214,25 @@ impl FrameScene {
             .collect();
         let data = ViewData::build(gpu, &rs, cameras, &images)?;
         let views = GpuViews::upload(gpu, &data)?;
+        let emitters: Vec<GpuLight> = lights.iter().map(GpuLight::new).collect();
+        // Vulkan has no empty buffers: one zero light when there is none (never read).
+        let mut stored = emitters.clone();
+        if stored.is_empty() {
+            stored.push(bytemuck::Zeroable::zeroed());
+        }
         Ok(FrameScene {
             mesh: rs,
             data,
             views,
             maps,
-            lights,
+            lights: lights.iter().map(|l| l.name.clone()).collect(),
+            emitters,
+            emitter_buf: Buffer::from_slice(
+                gpu,
+                "frame emitters",
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                &stored,
+            )?,
             sampler: Sampler::linear(gpu)?,
         })
     }
@@ -230,7 +248,13 @@ impl FrameScene {
         let mesh = bakerun::bake_mesh(scene, params);
         let cams: Vec<Camera> = scene.views.iter().map(|v| v.camera.clone()).collect();
         let maps = ViewMaps::upload_cached(gpu, scene, params, &host, format)?;
-        FrameScene::build(gpu, &mesh, &cams, &host, added_lights(scene), maps)
+        let added: Vec<Light> = scene
+            .lights
+            .iter()
+            .filter(|l| !l.original)
+            .cloned()
+            .collect();
+        FrameScene::build(gpu, &mesh, &cams, &host, &added, maps)
     }
 }
 
@@ -468,6 +492,7 @@ impl Renderer {
             (16, Bind::Buffer(&b.input.buf)),
             (17, Bind::Buffer(&b.hdr)),
             (18, Bind::Buffer(&b.ldr)),
+            (19, Bind::Buffer(&s.emitter_buf)),
         ]);
         // Binding 13 is each pass's own output (the composites for the passes that read them).
         fn with13<'a>(binds: &[(u32, Bind<'a>)], buf: &'a Buffer) -> Vec<(u32, Bind<'a>)> {
@@ -567,6 +592,8 @@ impl Renderer {
                             Mode::Ratio => 2,
                         },
                         exposure,
+                        cam: cam.to_gpu(NEAR, FAR),
+                        nlights,
                     };
                     let mut v = with13(&binds, &b.comp);
                     v.retain(|(i, _)| *i != 16);

@@ -1,6 +1,12 @@
 //! The frame's output (§5.2): `shaders_glsl/frame/output.glsl`. Network mode sums the diffuse
 //! and view-dependent outputs in tonemapped space and inverts the tonemap; ULR mode shows the
 //! `I_1` composite; ratio mode relights it with eq. 5's pseudo-albedo rule. Linear HDR for EXR, exposure + sRGB in 8 bits for screens and PNG.
+//! In every mode, lit added lights in front of the surface are drawn (`frame/emitters.glsl`).
+
+use glam::Vec3;
+
+use crate::bake::GpuLight;
+use crate::scene::{Camera, GpuCamera};
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -9,6 +15,8 @@ pub struct Push {
     pub height: u32,
     pub mode: u32,
     pub exposure: f32,
+    pub cam: GpuCamera,
+    pub nlights: u32,
 }
 
 pub const SHADER_F16: &str = "frame/output.comp";
@@ -54,4 +62,55 @@ pub fn reference_ratio(comp: &[[f32; 4]], irr: &[[f32; 4]], npix: usize) -> Vec<
 /// The display value (8-bit sRGB) of a linear colour at `exposure`.
 pub fn display(c: [f32; 3], exposure: f32) -> [u8; 3] {
     c.map(|v| (srgb(v * exposure) * 255.0).round() as u8)
+}
+
+/// CPU mirror of `nearest_emitter`: the radiance of the nearest lit added light along (o, d)
+/// closer than `t`, with its distance.
+pub fn nearest_emitter(
+    emitters: &[GpuLight],
+    intensities: &[f32],
+    o: Vec3,
+    d: Vec3,
+    mut t: f32,
+) -> Option<(Vec3, f32)> {
+    let mut found = None;
+    for (l, e) in emitters.iter().enumerate() {
+        let s = intensities.get(l).copied().unwrap_or(0.0);
+        if s <= 0.0 {
+            continue;
+        }
+        if let Some(tl) = e.hit(o, d).filter(|&tl| tl < t) {
+            t = tl;
+            found = Some((s * Vec3::from_slice(&e.radiance[..3]), tl));
+        }
+    }
+    found
+}
+
+/// CPU reference of the emitters drawn over a mode's output `base` (linear RGB per pixel;
+/// `gpos`: the G-buffer's world position + depth).
+pub fn reference_emitters(
+    cam: &Camera,
+    gpos: &[[f32; 4]],
+    emitters: &[GpuLight],
+    intensities: &[f32],
+    base: &[[f32; 3]],
+) -> Vec<[f32; 3]> {
+    let eye = cam.center();
+    (0..base.len())
+        .map(|p| {
+            let (x, y) = ((p as u32 % cam.width) as f32, (p as u32 / cam.width) as f32);
+            let d = cam.ray_dir(glam::Vec2::new(x + 0.5, y + 0.5)).normalize();
+            let g = gpos[p];
+            let t = if g[3] > 0.0 {
+                Vec3::new(g[0], g[1], g[2]).distance(eye)
+            } else {
+                1e30
+            };
+            match nearest_emitter(emitters, intensities, eye, d, t) {
+                Some((le, _)) => le.into(),
+                None => base[p],
+            }
+        })
+        .collect()
 }

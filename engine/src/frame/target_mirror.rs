@@ -21,7 +21,8 @@ pub struct Push {
 
 pub const SHADER: &str = "frame/target_mirror.comp";
 
-/// CPU reference: vec4 per pixel (rgb, reflected distance).
+/// CPU reference: vec4 per pixel (rgb, reflected distance; a lit added light met first gives
+/// its radiance).
 pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
     let npix = (r.width * r.height) as usize;
     let nviews = r.data.cameras.len();
@@ -35,7 +36,14 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
             let v = (x - r.eye).normalize();
             let rd = v - 2.0 * n.dot(v) * n;
             let o = x + n * 1e-3;
-            let Some(h) = crate::cpu::closest_hit(mesh, o, rd, 1e-3, 1e4) else {
+            let hit = crate::cpu::closest_hit(mesh, o, rd, 1e-3, 1e4);
+            let t = hit.as_ref().map_or(1e30, |h| h.t);
+            if let Some((le, tl)) =
+                super::output::nearest_emitter(r.emitters, r.intensities, o, rd, t)
+            {
+                return [le.x, le.y, le.z, tl];
+            }
+            let Some(h) = hit else {
                 return [0.0; 4];
             };
             let y = o + rd * h.t;
