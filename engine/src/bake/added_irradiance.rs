@@ -221,7 +221,7 @@ impl AddedIrradiance {
         )
     }
 
-    /// Runs one view: (E_add, its indirect part).
+    /// Runs one view: (E_add, its indirect part), vec4 per pixel each.
     #[allow(clippy::too_many_arguments)]
     pub fn run(
         &self,
@@ -231,7 +231,7 @@ impl AddedIrradiance {
         view: u32,
         light: &GpuLight,
         p: AddedParams,
-    ) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>)> {
+    ) -> Result<(Map, Map)> {
         let gpu = &self.pipeline.gpu;
         let n = (views.width * views.height) as u64;
         let ind = Buffer::new(
@@ -250,6 +250,9 @@ impl AddedIrradiance {
     }
 }
 
+/// One vec4 per pixel of a view.
+pub type Map = Vec<[f32; 4]>;
+
 /// Bounces after which Russian roulette may end a path (as in the shader).
 pub const RR_START: u32 = 2;
 
@@ -261,7 +264,7 @@ pub fn reference(
     view: usize,
     light: &GpuLight,
     p: AddedParams,
-) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+) -> (Map, Map) {
     let npix = d.pixels();
     (0..npix)
         .map(|px| {

@@ -186,7 +186,7 @@ pub fn reference(
             for s in 0..samples {
                 if nl > 0 {
                     let l = s % nl;
-                    let per_light = ((samples - l + nl - 1) / nl) as f32;
+                    let per_light = (samples - l).div_ceil(nl) as f32;
                     let u = rand2([gi as u32, s, !seed]);
                     direct += lights[l as usize].direct(mesh, x, n, u, LIGHT_SKIN) / per_light;
                 }
