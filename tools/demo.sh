@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # The main job on the bundled scene: sets the machine up (tools/setup.sh), reports the device,
 # checks and bakes scenes/demo_room (preview quality, ~10–16 min on 2 cores; a second run finds
-# everything cached), renders one novel view and records the flythrough of the scene's test
-# path (camera and lighting keyframes) to out/demo_room_fly.mp4 (and, relit without a network,
+# everything cached), renders one novel view and records a walk through the room (paths/walk.json:
+# the TV and the window's reflection on the floor, the table, the bed, the shelf; a lamp by the TV
+# switches on, the original light dims to 30%, the light passes to a lamp mid-room and one by the
+# bed, and the original light returns) to out/demo_room_fly.mp4 (and, relit without a network,
 # out/demo_room_fly_ratio.mp4).
 #
 # With trained weights at tools/train/weights/relit.safetensors the frames come from the
@@ -23,8 +25,8 @@ if [ -f tools/train/weights/relit.safetensors ]; then
 fi
 mkdir -p out
 $R render $S --camera test003 --lighting extra0_on_dimmed --out out/demo_room_test003.png "${WEIGHTS[@]}"
-$R fly $S --path $S/paths/test.json --out out/demo_room_fly.mp4 --res 256x192 --fps 12 "${WEIGHTS[@]}"
+$R fly $S --path $S/paths/walk.json --out out/demo_room_fly.mp4 --res 256x192 --fps 12 "${WEIGHTS[@]}"
 # The same path relit without a network (diffuse: eq. 5's pseudo-albedo rule on the composite),
 # so the path's lighting keyframes show.
-$R fly $S --path $S/paths/test.json --out out/demo_room_fly_ratio.mp4 --res 256x192 --fps 12 --mode ratio
+$R fly $S --path $S/paths/walk.json --out out/demo_room_fly_ratio.mp4 --res 256x192 --fps 12 --mode ratio
 echo "main job done: out/demo_room_fly.mp4, out/demo_room_fly_ratio.mp4, out/demo_room_test003.png"

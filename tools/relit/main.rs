@@ -486,7 +486,16 @@ fn bake(
             println!(
                 "  {stage}: {items} item(s) in {secs:.1} s{}",
                 if *rays > 0 {
-                    format!(", {:.2} M rays/s", *rays as f64 / secs.max(1e-9) * 1e-6)
+                    // Paths end early by Russian roulette: their count is the most they trace.
+                    let most = if stage == "added irradiance" {
+                        "at most "
+                    } else {
+                        ""
+                    };
+                    format!(
+                        ", {most}{:.2} M rays/s",
+                        *rays as f64 / secs.max(1e-9) * 1e-6
+                    )
                 } else {
                     String::new()
                 }

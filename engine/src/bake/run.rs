@@ -365,7 +365,9 @@ pub fn bake(
             &esrc_file(&cache, &scene.views[i].name),
             &to_image(w, h, &e),
         )?;
-        rays += npix * p.irradiance_samples as u64;
+        // Declared original lights add one shadow ray per sample.
+        let per_sample = 1 + scene.lights.iter().any(|l| l.original) as u64;
+        rays += npix * p.irradiance_samples as u64 * per_sample;
         progress.update("source irradiance", k + 1, todo.len(), rays);
     }
     report.stages.push((
@@ -499,7 +501,8 @@ pub fn bake(
             write_exr(&f, &to_image(w, h, &read_out(&out)?))?;
             added_s += t.elapsed().as_secs_f64();
             added_done += 1;
-            // Per path: (bounces + 1) shadow rays and `bounces` continuation rays at most.
+            // Per path: (bounces + 1) shadow rays and `bounces` continuation rays at most;
+            // Russian roulette ends most paths sooner, so this rate is an upper bound.
             added_rays += npix * p.added_samples as u64 * (2 * p.bounces as u64 + 1);
         }
         progress.update(
