@@ -460,19 +460,7 @@ fn bake_accuracy_against_mitsuba_ground_truth() {
         light_views: 3,
     };
     relit_scenegen::generate(&dir, 12, &opts).unwrap();
-    let script =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/groundtruth/render.py");
-    let out = std::process::Command::new("python3")
-        .arg(&script)
-        .arg(&dir)
-        .args(["--spp", "256"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    common::render_ground_truth(&dir, &["--spp", "256"]);
     let scene = relit_engine::scene::Scene::load(&dir).unwrap();
     let gpu = common::gpu();
     let params = BakeParams::final_quality();

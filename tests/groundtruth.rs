@@ -3,8 +3,6 @@
 
 mod common;
 
-use std::path::Path;
-use std::process::Command;
 
 use relit_engine::gpu::RayScene;
 use relit_engine::raster::GbufferPass;
@@ -24,18 +22,7 @@ fn mitsuba_depth_matches_engine_raster_of_the_true_mesh() {
         light_views: 0,
     };
     relit_scenegen::generate(&dir, 11, &opts).unwrap();
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/groundtruth/render.py");
-    let out = Command::new("python3")
-        .arg(&script)
-        .arg(&dir)
-        .args(["--only", "aov"])
-        .output()
-        .expect("python3");
-    assert!(
-        out.status.success(),
-        "render.py failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    common::render_ground_truth(&dir, &["--only", "aov"]);
 
     let scene = Scene::load(&dir).unwrap();
     let true_mesh = Mesh::load(scene.true_mesh_path.as_ref().unwrap()).unwrap();

@@ -35,18 +35,7 @@ fn scene_few_views_see_the_lights() -> std::path::PathBuf {
         light_views: 0,
     };
     relit_scenegen::generate(&dir, 12, &opts).unwrap();
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/groundtruth/render.py");
-    let out = Command::new("python3")
-        .arg(&script)
-        .arg(&dir)
-        .args(["--spp", "128"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    common::render_ground_truth(&dir, &["--spp", "128"]);
     dir
 }
 

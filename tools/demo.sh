@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The main job on the bundled scene: sets the machine up (tools/setup.sh), reports the device,
-# checks and bakes scenes/demo_room (preview quality, ~10–16 min on 2 cores; a second run finds
+# checks and bakes scenes/demo_room (preview quality, ~14 min on 2 cores; a second run finds
 # everything cached), renders one novel view and records a walk through the room (paths/walk.json:
 # the TV and the window's reflection on the floor, the table, the bed, the shelf; a lamp by the TV
 # switches on, the original light dims to 30%, the light passes to a lamp mid-room and one by the

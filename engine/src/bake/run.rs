@@ -465,26 +465,11 @@ pub fn bake(
             let gl = GpuLight::new(l);
             let mut res = Ok(());
             // The indirect part is filtered like E_src; the direct part keeps its sharp shadows.
+            let filter = p.denoise.radius > 0;
+            let total = if filter { &noisy } else { &out };
             gpu.submit(|cmd| {
-                res = if p.denoise.radius > 0 {
-                    added
-                        .record(
-                            cmd,
-                            &mesh,
-                            &views,
-                            &albedo_buf,
-                            i as u32,
-                            &gl,
-                            ap,
-                            &noisy,
-                            &ind,
-                        )
-                        .and_then(|_| {
-                            crate::gpu::full_barrier(gpu, cmd);
-                            dn.record(cmd, &views, i as u32, p.denoise, &ind, Some(&noisy), &out)
-                        })
-                } else {
-                    added.record(
+                res = added
+                    .record(
                         cmd,
                         &mesh,
                         &views,
@@ -492,10 +477,16 @@ pub fn bake(
                         i as u32,
                         &gl,
                         ap,
-                        &out,
+                        total,
                         &ind,
                     )
-                }
+                    .and_then(|_| {
+                        if !filter {
+                            return Ok(());
+                        }
+                        crate::gpu::full_barrier(gpu, cmd);
+                        dn.record(cmd, &views, i as u32, p.denoise, &ind, Some(&noisy), &out)
+                    })
             })?;
             res?;
             write_exr(&f, &to_image(w, h, &read_out(&out)?))?;
