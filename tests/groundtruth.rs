@@ -3,7 +3,6 @@
 
 mod common;
 
-
 use relit_engine::gpu::RayScene;
 use relit_engine::raster::GbufferPass;
 use relit_engine::scene::{image::load_rgb, Mesh, Scene};
