@@ -35,30 +35,9 @@ vec3 light_normal(Light l) {
     return l.p0.w < 0.5 ? normalize(cross(l.p1.xyz, l.p2.xyz)) : normalize(l.p1.xyz);
 }
 
-// Distance along the ray (o, unit d) to the light's emitting side, or -1 when the ray misses it
-// or meets its back. A quad may be any parallelogram: its point is solved in (edge_u, edge_v).
-float light_hit(Light l, vec3 o, vec3 d) {
-    vec3 n = light_normal(l);
-    float dn = dot(d, n);
-    if (dn >= 0.0) return -1.0;
-    float t = dot(l.p0.xyz - o, n) / dn;
-    if (t <= 0.0) return -1.0;
-    vec3 q = o + t * d - l.p0.xyz;
-    if (l.p0.w >= 0.5) return dot(q, q) <= l.p2.x * l.p2.x ? t : -1.0;
-    vec3 u = l.p1.xyz, v = l.p2.xyz;
-    float uu = dot(u, u), uv = dot(u, v), vv = dot(v, v), qu = dot(q, u), qv = dot(q, v);
-    float det = uu * vv - uv * uv;
-    float a = (qu * vv - qv * uv) / det, b = (qv * uu - qu * uv) / det;
-    return (a >= 0.0 && a <= 1.0 && b >= 0.0 && b <= 1.0) ? t : -1.0;
-}
-
-// Whether p lies on the light's outline grown by `margin` (metres), within `skin` of its plane.
-bool light_near(Light l, vec3 p, float skin, float margin) {
-    vec3 n = light_normal(l);
-    vec3 q = p - l.p0.xyz;
-    float h = dot(q, n);
-    if (abs(h) > skin) return false;
-    q -= h * n;
+// Whether q (from the corner or centre, in the light's plane) lies inside the outline grown by
+// `margin` metres. A quad may be any parallelogram: q is solved in (edge_u, edge_v).
+bool within_outline(Light l, vec3 q, float margin) {
     if (l.p0.w >= 0.5) return length(q) <= l.p2.x + margin;
     vec3 u = l.p1.xyz, v = l.p2.xyz;
     float uu = dot(u, u), uv = dot(u, v), vv = dot(v, v), qu = dot(q, u), qv = dot(q, v);
@@ -66,6 +45,25 @@ bool light_near(Light l, vec3 p, float skin, float margin) {
     float a = (qu * vv - qv * uv) / det, b = (qv * uu - qu * uv) / det;
     float mu = margin / sqrt(uu), mv = margin / sqrt(vv);
     return a >= -mu && a <= 1.0 + mu && b >= -mv && b <= 1.0 + mv;
+}
+
+// Distance along the ray (o, unit d) to the light's emitting side, or -1 when the ray misses it
+// or meets its back.
+float light_hit(Light l, vec3 o, vec3 d) {
+    vec3 n = light_normal(l);
+    float dn = dot(d, n);
+    if (dn >= 0.0) return -1.0;
+    float t = dot(l.p0.xyz - o, n) / dn;
+    if (t <= 0.0) return -1.0;
+    return within_outline(l, o + t * d - l.p0.xyz, 0.0) ? t : -1.0;
+}
+
+// Whether p lies on the light's outline grown by `margin` (metres), within `skin` of its plane.
+bool light_near(Light l, vec3 p, float skin, float margin) {
+    vec3 n = light_normal(l);
+    vec3 q = p - l.p0.xyz;
+    float h = dot(q, n);
+    return abs(h) <= skin && within_outline(l, q - h * n, margin);
 }
 
 #endif

@@ -70,27 +70,27 @@ impl GpuLight {
         if t <= 0.0 {
             return None;
         }
-        let q = o + t * d - v(self.p0);
-        if self.p0[3] >= 0.5 {
-            return (q.dot(q) <= self.p2[0] * self.p2[0]).then_some(t);
-        }
-        let (u, w) = (v(self.p1), v(self.p2));
-        let (uu, uw, ww, qu, qw) = (u.dot(u), u.dot(w), w.dot(w), q.dot(u), q.dot(w));
-        let det = uu * ww - uw * uw;
-        let (a, b) = ((qu * ww - qw * uw) / det, (qw * uu - qu * uw) / det);
-        ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
+        self.within_outline(o + t * d - v(self.p0), 0.0)
+            .then_some(t)
     }
 
     /// CPU mirror of `light_near`: p on the outline grown by `margin`, within `skin` of the plane.
     pub fn near(&self, p: Vec3, skin: f32, margin: f32) -> bool {
         let v = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
         let n = self.normal();
-        let mut q = p - v(self.p0);
+        let q = p - v(self.p0);
         let h = q.dot(n);
         if h.abs() > skin {
             return false;
         }
-        q -= h * n;
+        self.within_outline(q - h * n, margin)
+    }
+
+    /// CPU mirror of `within_outline`: q (from the corner or centre, in the light's plane)
+    /// inside the outline grown by `margin` metres. A quad may be any parallelogram: q is
+    /// solved in (edge_u, edge_v).
+    fn within_outline(&self, q: Vec3, margin: f32) -> bool {
+        let v = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
         if self.p0[3] >= 0.5 {
             return q.length() <= self.p2[0] + margin;
         }
@@ -99,7 +99,7 @@ impl GpuLight {
         let det = uu * ww - uw * uw;
         let (a, b) = ((qu * ww - qw * uw) / det, (qw * uu - qu * uw) / det);
         let (mu, mv) = (margin / uu.sqrt(), margin / ww.sqrt());
-        a >= -mu && a <= 1.0 + mu && b >= -mv && b <= 1.0 + mv
+        (-mu..=1.0 + mu).contains(&a) && (-mv..=1.0 + mv).contains(&b)
     }
 
     /// CPU mirror of `light_direct` (common/nee.glsl): direct irradiance at x from one sample.

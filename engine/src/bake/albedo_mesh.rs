@@ -164,13 +164,7 @@ pub fn darken_lights(positions: &[[f32; 3]], lights: &[super::GpuLight], albedo:
     use super::source_irradiance::LIGHT_SKIN;
     for (p, a) in positions.iter().zip(albedo.iter_mut()) {
         let p = Vec3::from(*p);
-        let on_light = lights.iter().any(|l| {
-            let n = l.normal();
-            let h = (p - Vec3::from_slice(&l.p0[..3])).dot(n);
-            // Straight down onto the light from in front of it: inside its outline.
-            h.abs() < LIGHT_SKIN && l.hit(p + n * (2.0 * LIGHT_SKIN), -n).is_some()
-        });
-        if on_light {
+        if lights.iter().any(|l| l.near(p, LIGHT_SKIN, 0.0)) {
             a[0] = 0.0;
             a[1] = 0.0;
             a[2] = 0.0;

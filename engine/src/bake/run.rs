@@ -317,13 +317,17 @@ pub fn bake(
     let views = GpuViews::upload(gpu, &data)?;
     let (w, h) = (data.width, data.height);
     let npix = (w * h) as u64;
-    let out = Buffer::new(
-        gpu,
-        "bake out",
-        npix * 16,
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-        MemoryLocation::GpuOnly,
-    )?;
+    // One vec4 per pixel of a view, on the device.
+    let map_buffer = |name: &str| {
+        Buffer::new(
+            gpu,
+            name,
+            npix * 16,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::GpuOnly,
+        )
+    };
+    let out = map_buffer("bake out")?;
     let read_out = |out: &Buffer| -> Result<Vec<[f32; 4]>> {
         let mut v: Vec<[f32; 4]> = out.download_vec()?;
         v.truncate(npix as usize);
@@ -333,13 +337,7 @@ pub fn bake(
     // Stage 1: source irradiance, denoised.
     let si = SourceIrradiance::new(gpu, &scene.lights)?;
     let dn = Denoise::new(gpu)?;
-    let noisy = Buffer::new(
-        gpu,
-        "noisy map",
-        npix * 16,
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-        MemoryLocation::GpuOnly,
-    )?;
+    let noisy = map_buffer("noisy map")?;
     let todo: Vec<usize> = slice
         .clone()
         .filter(|&i| !esrc_file(&cache, &scene.views[i].name).exists())
@@ -428,13 +426,7 @@ pub fn bake(
         Buffer::from_slice(gpu, "albedo", vk::BufferUsageFlags::STORAGE_BUFFER, &albedo)?;
 
     // Stage 3: source mirror images and added irradiance per user light.
-    let ind = Buffer::new(
-        gpu,
-        "e_add indirect",
-        npix * 16,
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-        MemoryLocation::GpuOnly,
-    )?;
+    let ind = map_buffer("e_add indirect")?;
     let mirror = Mirror::new(gpu)?;
     let added = AddedIrradiance::new(gpu)?;
     let user_lights: Vec<_> = scene.lights.iter().filter(|l| !l.original).collect();
