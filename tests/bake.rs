@@ -156,23 +156,33 @@ fn mirror_images_match_cpu_reference() {
     common::assert_no_validation_errors(&gpu);
 }
 
-#[test]
-fn added_irradiance_matches_cpu_reference() {
-    use relit_engine::bake::{added_irradiance, AddedIrradiance, AddedParams, GpuLight};
-    use relit_engine::gpu::{vk, Buffer};
-    let gpu = common::gpu();
-    let (t, rs) = tiny(&gpu);
-    let views = GpuViews::upload(&gpu, &t.data).unwrap();
-    // A known albedo (0.6 grey, 0.3 on the second half of the vertices) isolates this pass.
-    let albedo: Vec<[f32; 4]> = (0..t.mesh.positions.len())
+/// A known albedo (0.6 grey, 0.3/0.2/0.1 on the second half of the vertices) isolates E_add's
+/// passes from the albedo mesh.
+fn known_albedo(nverts: usize) -> Vec<[f32; 4]> {
+    (0..nverts)
         .map(|i| {
-            if i * 2 < t.mesh.positions.len() {
+            if i * 2 < nverts {
                 [0.6, 0.6, 0.6, 1.0]
             } else {
                 [0.3, 0.2, 0.1, 1.0]
             }
         })
-        .collect();
+        .collect()
+}
+
+/// Relative difference of two caches per texel (relative to the mean): (share over `rel`, worst).
+fn texel_mismatch(g: &[[f32; 4]], c: &[[f32; 4]], rel: f32) -> (f32, f32) {
+    mismatch(g, c, rel)
+}
+
+#[test]
+fn surface_cache_matches_cpu_reference() {
+    use relit_engine::bake::SurfaceCache;
+    use relit_engine::bake::{surface_cache, AddedParams, CacheLayout, GpuCacheLayout, GpuLight};
+    use relit_engine::gpu::{vk, Buffer};
+    let gpu = common::gpu();
+    let (t, rs) = tiny(&gpu);
+    let albedo = known_albedo(t.mesh.positions.len());
     let ab = Buffer::from_slice(
         &gpu,
         "albedo",
@@ -180,45 +190,195 @@ fn added_irradiance_matches_cpu_reference() {
         &albedo,
     )
     .unwrap();
+    let layout = CacheLayout::new(&t.mesh);
+    // Every vertex has a texel (more where faces meet at a crease).
+    assert!(layout.texels() >= t.mesh.positions.len());
+    let gl = GpuCacheLayout::upload(&gpu, &layout).unwrap();
+    let pass = SurfaceCache::new(&gpu).unwrap();
+    let (lights, _) = synth::room_lights();
+    let p = AddedParams {
+        samples: 4,
+        cache_samples: 16,
+        bounces: 3,
+        seed: 5,
+    };
+    for light in &lights {
+        let l = GpuLight::new(light);
+        let g = pass.run(&rs, &gl, &ab, &l, p, &mut |_, _| {}).unwrap();
+        let c = surface_cache::reference(&t.mesh, &layout, &albedo, &l, p);
+        // Same random numbers; a ray grazing an edge may take another path: 2% of the mean on
+        // ≥ 95% of the texels.
+        let (bad, worst) = texel_mismatch(&g, &c, 0.02);
+        eprintln!(
+            "{}: {:.2}% of texels over 2%, worst {worst:.4}",
+            light.name,
+            bad * 100.0
+        );
+        assert!(
+            bad <= 0.05,
+            "{}: {:.1}% of texels differ",
+            light.name,
+            bad * 100.0
+        );
+        assert!(
+            c.iter().any(|v| v[0] > 0.0),
+            "indirect light must reach the cache"
+        );
+    }
+    common::assert_no_validation_errors(&gpu);
+}
+
+#[test]
+fn cache_filter_smooths_along_the_mesh_only() {
+    use relit_engine::bake::CacheLayout;
+    use relit_engine::scene::Mesh;
+    // Two unit squares: one on the floor, one 1 cm above it, not connected.
+    let sq = |y: f32| Mesh {
+        positions: vec![[0.0, y, 0.0], [1.0, y, 0.0], [1.0, y, 1.0], [0.0, y, 1.0]],
+        colors: None,
+        triangles: vec![[0, 2, 1], [0, 3, 2]],
+    };
+    let mut m = sq(0.0);
+    m.append(&sq(0.01));
+    let layout = CacheLayout::new(&m);
+    assert_eq!(layout.texels(), 8, "flat squares: one texel per vertex");
+    // Noise on the floor, a constant above: the filter keeps each surface's mean and never
+    // mixes the two.
+    let v: Vec<[f32; 4]> = (0..8)
+        .map(|i| {
+            if i < 4 {
+                [(i % 2) as f32 * 2.0, 0.0, 0.0, 1.0]
+            } else {
+                [5.0, 0.0, 0.0, 1.0]
+            }
+        })
+        .collect();
+    let f = layout.filter(&v, 2);
+    for t in 0..4 {
+        assert!((f[t][0] - 1.0).abs() < 0.5, "floor texel {t}: {}", f[t][0]);
+    }
+    assert!(f[4..].iter().all(|x| (x[0] - 5.0).abs() < 1e-5));
+    let spread = |x: &[[f32; 4]]| {
+        x[..4]
+            .iter()
+            .map(|p| (p[0] - 1.0).abs())
+            .fold(0f32, f32::max)
+    };
+    assert!(spread(&f) < spread(&v), "the filter must reduce the noise");
+}
+
+#[test]
+fn refine_splits_long_edges_without_cracks() {
+    use relit_engine::scene::{meshproc, Mesh};
+    let mut m = Mesh {
+        positions: vec![
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [2.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+        ],
+        colors: None,
+        triangles: vec![[0, 2, 1], [0, 3, 2]],
+    };
+    let area = |m: &Mesh| -> f32 {
+        (0..m.triangles.len())
+            .map(|t| {
+                let [a, b, c] = m.corners(t);
+                (b - a).cross(c - a).length() / 2.0
+            })
+            .sum()
+    };
+    let up = |m: &Mesh| (0..m.triangles.len()).all(|t| m.face_normal(t).y > 0.99);
+    assert!(up(&m));
+    meshproc::refine(&mut m, 0.3);
+    assert!((area(&m) - 2.0).abs() < 1e-4, "the shape is kept");
+    assert!(up(&m), "winding is kept");
+    for t in 0..m.triangles.len() {
+        let [a, b, c] = m.corners(t);
+        for (p, q) in [(a, b), (b, c), (c, a)] {
+            assert!(p.distance(q) <= 0.3 + 1e-5, "edge of {}", p.distance(q));
+        }
+    }
+    // Watertight: every interior edge is shared by exactly two triangles.
+    let mut edges = std::collections::HashMap::new();
+    for t in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+            *edges.entry((a, b)).or_insert(0) += 1;
+        }
+    }
+    assert!(edges.values().all(|&n| n <= 2));
+    let boundary = edges.values().filter(|&&n| n == 1).count();
+    // The outline (6 m) is cut into pieces of at most 0.3 m and no more than needed.
+    assert!((20..=32).contains(&boundary), "{boundary} boundary edges");
+}
+
+#[test]
+fn added_irradiance_matches_cpu_reference() {
+    use relit_engine::bake::{added_irradiance, AddedIrradiance, AddedParams, GpuLight};
+    use relit_engine::bake::{CacheLayout, GpuCacheLayout};
+    use relit_engine::gpu::{vk, Buffer};
+    let gpu = common::gpu();
+    let (t, rs) = tiny(&gpu);
+    let views = GpuViews::upload(&gpu, &t.data).unwrap();
+    let layout = CacheLayout::new(&t.mesh);
+    let gl = GpuCacheLayout::upload(&gpu, &layout).unwrap();
+    // A made-up cache (a gradient over the texels) isolates the lookup from the cache's trace.
+    let cache: Vec<[f32; 4]> = (0..layout.texels())
+        .map(|i| {
+            [
+                0.1 + 0.01 * (i % 37) as f32,
+                0.2,
+                0.05 * (i % 3) as f32,
+                1.0,
+            ]
+        })
+        .collect();
+    let cb =
+        Buffer::from_slice(&gpu, "cache", vk::BufferUsageFlags::STORAGE_BUFFER, &cache).unwrap();
     let pass = AddedIrradiance::new(&gpu).unwrap();
     let (lights, _) = synth::room_lights();
     let p = AddedParams {
         samples: 8,
+        cache_samples: 0,
         bounces: 2,
         seed: 5,
     };
+    let mut reached = false;
     for light in &lights {
-        let gl = GpuLight::new(light);
+        let l = GpuLight::new(light);
         for view in [0u32, 2] {
-            let (g, g_ind) = pass.run(&rs, &views, &ab, view, &gl, p).unwrap();
-            let (c, c_ind) =
-                added_irradiance::reference(&t.mesh, &t.data, &albedo, view as usize, &gl, p);
+            let g = pass.run(&rs, &views, &gl, &cb, view, &l, p).unwrap();
+            let c = added_irradiance::reference(
+                &t.mesh,
+                &t.data,
+                &layout,
+                &cache,
+                view as usize,
+                &l,
+                p,
+            );
             // Same random numbers; a shadow ray grazing an edge may flip: 2% of the image mean
-            // per pixel on ≥ 95% of pixels, for E_add and for its indirect part alone.
-            for (what, g, c) in [("E_add", &g, &c), ("indirect", &g_ind, &c_ind)] {
-                let (bad, worst) = mismatch(g, c, 0.02);
-                eprintln!(
-                    "{} view {view} {what}: {:.2}% over 2%, worst {worst:.4}",
-                    light.name,
-                    bad * 100.0
-                );
-                assert!(
-                    bad <= 0.05,
-                    "{} view {view} {what}: {:.1}% of pixels differ",
-                    light.name,
-                    bad * 100.0
-                );
-            }
-            assert!(
-                c_ind.iter().zip(&c).all(|(i, t)| i[0] <= t[0] + 1e-6),
-                "the indirect part is a part"
+            // per pixel on ≥ 95% of pixels.
+            let (bad, worst) = mismatch(&g, &c, 0.02);
+            eprintln!(
+                "{} view {view}: {:.2}% over 2%, worst {worst:.4}",
+                light.name,
+                bad * 100.0
             );
             assert!(
-                c.iter().any(|p| p[0] > 0.0),
-                "the light must reach the view"
+                bad <= 0.05,
+                "{} view {view}: {:.1}% of pixels differ",
+                light.name,
+                bad * 100.0
             );
+            let zero = vec![[0.0; 4]; cache.len()];
+            let direct =
+                added_irradiance::reference(&t.mesh, &t.data, &layout, &zero, view as usize, &l, p);
+            reached |= direct.iter().any(|p| p[0] > 0.0);
         }
     }
+    assert!(reached, "direct light must reach the views");
     common::assert_no_validation_errors(&gpu);
 }
 
@@ -255,6 +415,8 @@ fn relit(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+/// Every file of a scene's bake cache, its lights' entries (`light-*/`) included, by relative
+/// path, with its bytes.
 fn cache_files(dir: &std::path::Path) -> Vec<(String, Vec<u8>)> {
     let cache = std::fs::read_dir(dir.join(".relit"))
         .unwrap()
@@ -262,16 +424,22 @@ fn cache_files(dir: &std::path::Path) -> Vec<(String, Vec<u8>)> {
         .unwrap()
         .unwrap()
         .path();
-    let mut v: Vec<_> = std::fs::read_dir(&cache)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .map(|p| {
-            (
-                p.file_name().unwrap().to_string_lossy().into_owned(),
-                std::fs::read(&p).unwrap(),
-            )
-        })
-        .collect();
+    let mut v = Vec::new();
+    let mut stack = vec![cache.clone()];
+    while let Some(d) = stack.pop() {
+        for p in std::fs::read_dir(&d).unwrap().map(|e| e.unwrap().path()) {
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                let rel = p
+                    .strip_prefix(&cache)
+                    .unwrap()
+                    .to_string_lossy()
+                    .into_owned();
+                v.push((rel, std::fs::read(&p).unwrap()));
+            }
+        }
+    }
     v.sort();
     v
 }
@@ -299,8 +467,9 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
     let reference = cache_files(&a);
     assert_eq!(
         reference.len(),
-        2 + 2 * 4 * (2 + 2),
-        "params.json, albedo + per view: E_src, M_src, 2 × E_add, each as EXR and BC6H"
+        2 + 2 * 4 * (2 + 2) + 2,
+        "params.json, albedo + per view: E_src, M_src, 2 × E_add, each as EXR and BC6H, \
+         + 2 surface caches"
     );
     // The BC6H copies load as one texture array and decode on the device close to the EXRs.
     {
@@ -430,8 +599,9 @@ fn view_slices_bake_separately_and_join() {
     assert!(out.status.success());
     assert_eq!(
         cache_files(&d).len(),
-        2 + 2 * (4 + 2 * (1 + 2)),
-        "params.json, albedo, 4 E_src, then slice 2..4's maps, each as EXR and BC6H"
+        2 + 2 * (4 + 2 * (1 + 2)) + 2,
+        "params.json, albedo, 4 E_src, then slice 2..4's maps, each as EXR and BC6H, and the \
+         2 lights' surface caches"
     );
     let out = relit(&[
         "bake",

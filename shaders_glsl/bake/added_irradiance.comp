@@ -1,12 +1,9 @@
 #version 460
-// Added irradiance E_add of one view for one user light (§4.1.3), path traced on the albedo
-// mesh: at each bounce, next-event estimation towards the light (shadow ray), then a
-// cosine-sampled continuation whose throughput is the interpolated vertex albedo. With cosine
-// sampling the π of E = π·L cancels the 1/π of Lambertian reflection:
-//   E(x) ≈ E_dir(x) + Σ_k (Π_{m≤k} ρ(y_m)) E_dir(y_k).
+// Added irradiance E_add of one view for one user light (§4.1.3): the direct part by
+// next-event estimation at every pixel (shadow rays; small lights keep sharp shadows), plus the
+// indirect part read from the light's surface cache (surface_cache.comp) at the pixel's point:
+// the texels at the corners of its triangle, interpolated barycentrically.
 // The light is not in the mesh, so rays never hit it: its light arrives by the NEE only.
-// `bounces` caps the path (the ground truth's path tracer stops at depth 8, i.e. 6 bounces
-// after the first indirect ray); past RR_START bounces Russian roulette ends most paths early.
 #extension GL_EXT_ray_query : require
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
@@ -20,18 +17,28 @@ layout(set = 0, binding = 0) uniform accelerationStructureEXT tlas;
 #include "nee.glsl"
 layout(set = 0, binding = 5, scalar) readonly buffer Verts { vec3 verts[]; };
 layout(set = 0, binding = 6) readonly buffer Indices { uint indices[]; };
-layout(set = 0, binding = 7) readonly buffer Albedo { vec4 albedo[]; };
-layout(set = 0, binding = 8) writeonly buffer Out { vec4 e_add[]; };
-// The indirect part alone (bounces ≥ 1): the bake filters it and keeps the direct part sharp.
-layout(set = 0, binding = 9) writeonly buffer Indirect { vec4 e_ind[]; };
+// Per view and pixel: the proxy triangle + 1 (0: none), from the views' G-buffers.
+layout(set = 0, binding = 7) readonly buffer Tri { uint pixel_tri[]; };
+// The cache: indirect E_add per texel, and the texel at each triangle corner.
+layout(set = 0, binding = 8) readonly buffer Cache { vec4 cache[]; };
+layout(set = 0, binding = 9) readonly buffer Corners { uint corner_texel[]; };
+layout(set = 0, binding = 10) writeonly buffer Out { vec4 e_add[]; };
 
 layout(push_constant, scalar) uniform Push {
-    uint view; uint width; uint height; uint samples; uint seed; uint bounces; uint pad0; uint pad1;
+    uint view; uint width; uint height; uint samples; uint seed; uint pad0; uint pad1; uint pad2;
     Light light;
 } pc;
 
-const uint RR_START = 2u;
-const uint MISS_RETRIES = 4u;
+// Barycentric weights of p (projected onto the triangle's plane), clamped into the triangle.
+vec3 barycentrics(vec3 p, vec3 a, vec3 b, vec3 c) {
+    vec3 e0 = b - a, e1 = c - a, q = p - a;
+    float d00 = dot(e0, e0), d01 = dot(e0, e1), d11 = dot(e1, e1);
+    float d20 = dot(q, e0), d21 = dot(q, e1);
+    float den = max(d00 * d11 - d01 * d01, 1e-20);
+    float v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
+    vec3 l = max(vec3(1.0 - v - w, v, w), vec3(0.0));
+    return l / max(l.x + l.y + l.z, 1e-20);
+}
 
 void main() {
     uint p = gl_GlobalInvocationID.x;
@@ -39,47 +46,18 @@ void main() {
     if (p >= npix) return;
     uint gi = pc.view * npix + p;
     vec4 xp = gpos[gi];
-    if (xp.w <= 0.0) { e_add[p] = vec4(0.0); e_ind[p] = vec4(0.0); return; }
+    uint tri = pixel_tri[gi];
+    if (xp.w <= 0.0 || tri == 0u) { e_add[p] = vec4(0.0); return; }
+    tri -= 1u;
     vec3 eye = cam_center(cams[pc.view]);
-    vec3 n0 = gnrm[gi].xyz;
-    if (dot(n0, eye - xp.xyz) < 0.0) n0 = -n0;
-    vec3 sum = vec3(0.0), dir = vec3(0.0);
-    for (uint s = 0u; s < pc.samples; ++s) {
-        vec3 x = xp.xyz, n = n0, thr = vec3(1.0);
-        for (uint b = 0u; b <= pc.bounces; ++b) {
-            uint k = s * 64u + 2u * b;
-            vec3 e = thr * light_direct(pc.light, x, n, rand2(uvec3(gi, k, pc.seed)), 0.0);
-            if (b == 0u) dir += e; else sum += e;
-            if (b == pc.bounces) break;
-            // A ray that leaves the proxy went through a hole of the MVS mesh (the room is
-            // closed): as E_src drops such rays, draw the direction again.
-            vec3 d;
-            rayQueryEXT rq;
-            bool hit = false;
-            for (uint r = 0u; r < MISS_RETRIES && !hit; ++r) {
-                d = cosine_dir(n, rand2(uvec3(gi, k + 1u, pc.seed + r * 0x9E3779B9u)));
-                rayQueryInitializeEXT(rq, tlas, gl_RayFlagsOpaqueEXT, 0xFF, x + n * 1e-3, 1e-3, d, 1e4);
-                while (rayQueryProceedEXT(rq)) {}
-                hit = rayQueryGetIntersectionTypeEXT(rq, true) == gl_RayQueryCommittedIntersectionTriangleEXT;
-            }
-            if (!hit) break;
-            uint tri = uint(rayQueryGetIntersectionPrimitiveIndexEXT(rq, true));
-            vec2 bc = rayQueryGetIntersectionBarycentricsEXT(rq, true);
-            uvec3 t = uvec3(indices[3u * tri], indices[3u * tri + 1u], indices[3u * tri + 2u]);
-            vec3 a = verts[t.x], bb = verts[t.y], c = verts[t.z];
-            x = x + n * 1e-3 + d * rayQueryGetIntersectionTEXT(rq, true);
-            n = normalize(cross(bb - a, c - a));
-            if (dot(n, d) > 0.0) n = -n;
-            vec3 rho = (1.0 - bc.x - bc.y) * albedo[t.x].rgb + bc.x * albedo[t.y].rgb + bc.y * albedo[t.z].rgb;
-            thr *= clamp(rho, vec3(0.0), vec3(1.0));
-            // Russian roulette past RR_START bounces: unbiased, and most paths stop early.
-            if (b + 1u >= RR_START) {
-                float q = min(max(thr.r, max(thr.g, thr.b)), 0.95);
-                if (rand2(uvec3(gi, k + 1u, ~pc.seed)).x >= q) break;
-                thr /= q;
-            }
-        }
-    }
-    e_add[p] = vec4((dir + sum) / float(pc.samples), 1.0);
-    e_ind[p] = vec4(sum / float(pc.samples), 1.0);
+    vec3 n = gnrm[gi].xyz;
+    if (dot(n, eye - xp.xyz) < 0.0) n = -n;
+    vec3 dir = vec3(0.0);
+    for (uint s = 0u; s < pc.samples; ++s)
+        dir += light_direct(pc.light, xp.xyz, n, rand2(uvec3(gi, s * 64u, pc.seed)), 0.0);
+    uvec3 v = uvec3(indices[3u * tri], indices[3u * tri + 1u], indices[3u * tri + 2u]);
+    vec3 l = barycentrics(xp.xyz, verts[v.x], verts[v.y], verts[v.z]);
+    uvec3 c = uvec3(corner_texel[3u * tri], corner_texel[3u * tri + 1u], corner_texel[3u * tri + 2u]);
+    vec3 ind = l.x * cache[c.x].rgb + l.y * cache[c.y].rgb + l.z * cache[c.z].rgb;
+    e_add[p] = vec4(dir / float(pc.samples) + ind, 1.0);
 }

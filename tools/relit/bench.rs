@@ -294,8 +294,8 @@ fn bake_bench(
     opts: &GpuOptions,
 ) -> Result<()> {
     use relit_engine::bake::{
-        AddedIrradiance, AddedParams, BakeParams, GpuLight, GpuViews, Mirror, SourceIrradiance,
-        ViewData,
+        surface_cache, AddedIrradiance, BakeParams, CacheLayout, GpuCacheLayout, GpuLight,
+        GpuViews, Mirror, SourceIrradiance, SurfaceCache, ViewData,
     };
     let scene = relit_engine::scene::Scene::load(dir)?;
     let p = match quality {
@@ -309,7 +309,8 @@ fn bake_bench(
         .map(|v| relit_engine::scene::image::load_rgb(&v.image))
         .collect::<relit_engine::Result<Vec<_>>>()?;
     let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
-    let mesh = RayScene::new(&gpu, &scene.mesh.positions, &scene.mesh.triangles)?;
+    let geom = relit_engine::bake::run::bake_mesh(&scene, &p);
+    let mesh = RayScene::new(&gpu, &geom.positions, &geom.triangles)?;
     let data = ViewData::build(&gpu, &mesh, &cams, &images)?;
     let views = GpuViews::upload(&gpu, &data)?;
     let npix = data.pixels() as u64;
@@ -320,45 +321,58 @@ fn bake_bench(
         vk::BufferUsageFlags::STORAGE_BUFFER,
         MemoryLocation::GpuOnly,
     )?;
-    let ind = Buffer::new(
+    let layout = CacheLayout::new(&geom);
+    let glayout = GpuCacheLayout::upload(&gpu, &layout)?;
+    let cache = Buffer::new(
         &gpu,
-        "indirect",
-        npix * 16,
+        "surface cache",
+        layout.texels() as u64 * 16,
         vk::BufferUsageFlags::STORAGE_BUFFER,
         MemoryLocation::GpuOnly,
     )?;
-    let albedo: Vec<[f32; 4]> = vec![[0.5, 0.5, 0.5, 1.0]; scene.mesh.positions.len()];
+    let albedo: Vec<[f32; 4]> = vec![[0.5, 0.5, 0.5, 1.0]; geom.positions.len()];
     let ab = Buffer::from_slice(
         &gpu,
         "albedo",
         vk::BufferUsageFlags::STORAGE_BUFFER,
         &albedo,
     )?;
-    let (si, mi, ai) = (
+    let (si, mi, ai, sc) = (
         SourceIrradiance::new(&gpu, &scene.lights)?,
         Mirror::new(&gpu)?,
         AddedIrradiance::new(&gpu)?,
+        SurfaceCache::new(&gpu)?,
     );
     let light = scene.lights.iter().find(|l| !l.original).map(GpuLight::new);
-    let ap = AddedParams {
-        samples: p.added_samples,
-        bounces: p.bounces,
-        seed: 1,
-    };
+    let ap = p.added();
     println!("device: {}", gpu.caps.name);
     println!(
-        "scene: {} views at {}x{}, {} proxy triangles; timing {} view(s): {} rays/px (E_src), {} paths/px x {} bounces (E_add)",
+        "scene: {} views at {}x{}, {} bake-mesh triangles, {} cache texels; timing {} view(s): {} rays/px (E_src), {} shadow rays/px + {} paths/texel x {} bounces (E_add)",
         scene.views.len(),
         data.width,
         data.height,
-        scene.mesh.triangles.len(),
+        geom.triangles.len(),
+        layout.texels(),
         nviews.min(scene.views.len()),
         p.irradiance_samples,
         p.added_samples,
+        p.cache_samples,
         p.bounces
     );
     // Warm-up: lavapipe compiles each shader at its first dispatch.
     si.record_warm(&gpu, &mesh, &views, &out)?;
+    // The surface cache of one light, whole (it does not depend on the view).
+    let mut t_c = 0.0;
+    if let Some(l) = &light {
+        let mut first = 0;
+        while first < glayout.texels {
+            let count = surface_cache::CHUNK.min(glayout.texels - first);
+            t_c += timed(&gpu, "cache", |cmd| {
+                sc.record(cmd, &mesh, &glayout, &ab, l, ap, first, count, &cache)
+            })?;
+            first += count;
+        }
+    }
     let (mut t_s, mut t_m, mut t_a) = (0.0, 0.0, 0.0);
     let n = nviews.min(scene.views.len()).max(1);
     for v in 0..n as u32 {
@@ -368,7 +382,7 @@ fn bake_bench(
         t_m += timed(&gpu, "m_src", |cmd| mi.record(cmd, &mesh, &views, v, &out))?;
         if let Some(l) = &light {
             t_a += timed(&gpu, "e_add", |cmd| {
-                ai.record(cmd, &mesh, &views, &ab, v, l, ap, &out, &ind)
+                ai.record(cmd, &mesh, &views, &glayout, &cache, v, l, ap, &out)
             })?;
         }
     }
@@ -381,7 +395,8 @@ fn bake_bench(
         1
     };
     let rays_s = npix * p.irradiance_samples as u64 * per_sample;
-    let rays_a = npix * p.added_samples as u64 * (2 * p.bounces as u64 + 1);
+    let rays_a = npix * p.added_samples as u64;
+    let rays_c = surface_cache::max_rays(layout.texels(), ap);
     println!(
         "source irradiance: {:.2} s/view, {:.3} M rays/s ({} rays/px)",
         per(t_s),
@@ -395,10 +410,17 @@ fn bake_bench(
     );
     if light.is_some() {
         println!(
-            "added irradiance:  {:.2} s/view/light, {:.3} M rays/s (at most {} rays/px)",
+            "surface cache:     {:.2} s/light, at most {:.3} M rays/s ({} texels x {} paths)",
+            t_c * 1e-3,
+            rays_c as f64 / (t_c * 1e-3) * 1e-6,
+            layout.texels(),
+            p.cache_samples
+        );
+        println!(
+            "added irradiance:  {:.2} s/view/light, {:.3} M rays/s ({} shadow rays/px + cache lookup)",
             per(t_a),
             rate(rays_a, t_a),
-            p.added_samples * (2 * p.bounces + 1)
+            p.added_samples
         );
     }
     // The raw rate on the same mesh, for comparison.
@@ -422,10 +444,9 @@ fn bake_bench(
         "raw closest-hit rate on this mesh: {:.3} M rays/s",
         rays.len() as f64 / (ms * 1e-3) * 1e-6
     );
-    let total = scene.views.len() as f64
-        * (per(t_s)
-            + per(t_m)
-            + per(t_a) * scene.lights.iter().filter(|l| !l.original).count() as f64);
+    let nlights = scene.lights.iter().filter(|l| !l.original).count() as f64;
+    let total = scene.views.len() as f64 * (per(t_s) + per(t_m) + per(t_a) * nlights)
+        + t_c * 1e-3 * nlights;
     println!(
         "projected full bake: {:.0} s ({} views)",
         total,
@@ -438,10 +459,16 @@ fn bc6h_bench(cache: &std::path::Path, maps: usize, opts: &GpuOptions) -> Result
     use relit_engine::bake::storage::{encode_bc6h, log_psnr, Bc6hQuality, Bc6hTexture, Fetch};
     let gpu = crate::open_gpu(opts)?;
     let fetch = Fetch::new(&gpu)?;
-    let mut files: Vec<PathBuf> = std::fs::read_dir(cache)?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "exr"))
-        .collect();
+    // The cache's maps and those of its lights' entries (light-*/).
+    let mut files: Vec<PathBuf> = Vec::new();
+    for e in std::fs::read_dir(cache)?.flatten() {
+        if e.path().is_dir() {
+            files.extend(std::fs::read_dir(e.path())?.flatten().map(|f| f.path()));
+        } else {
+            files.push(e.path());
+        }
+    }
+    files.retain(|p| p.extension().is_some_and(|e| e == "exr"));
     files.sort();
     println!("device: {}", gpu.caps.name);
     for kind in [".esrc.", ".msrc.", ".eadd."] {

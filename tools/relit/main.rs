@@ -49,9 +49,13 @@ enum Cmd {
         /// Rays per pixel for the source irradiance (overrides the quality preset).
         #[arg(long)]
         rays: Option<u32>,
-        /// Paths per pixel for the added irradiance (overrides the quality preset).
+        /// Shadow rays per pixel for the added irradiance's direct part (overrides the preset).
         #[arg(long)]
         added_samples: Option<u32>,
+        /// Paths per surface-cache texel for the added irradiance's indirect part (overrides
+        /// the preset).
+        #[arg(long)]
+        cache_samples: Option<u32>,
         /// After baking, compare with the scene's ground truth (synthetic scenes).
         #[arg(long)]
         eval: bool,
@@ -487,7 +491,7 @@ fn bake(
                 "  {stage}: {items} item(s) in {secs:.1} s{}",
                 if *rays > 0 {
                     // Paths end early by Russian roulette: their count is the most they trace.
-                    let most = if stage == "added irradiance" {
+                    let most = if stage == "surface cache" {
                         "at most "
                     } else {
                         ""
@@ -625,6 +629,7 @@ fn main() {
             quality,
             rays,
             added_samples,
+            cache_samples,
             eval,
             mesh_process,
             uncompressed,
@@ -641,6 +646,9 @@ fn main() {
             }
             if let Some(a) = added_samples {
                 p.added_samples = *a;
+            }
+            if let Some(c) = cache_samples {
+                p.cache_samples = *c;
             }
             bake(scene, &p, *eval, &opts)
         }

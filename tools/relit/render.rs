@@ -66,8 +66,8 @@ pub fn find_bake(scene: &Scene, quality: Option<crate::Quality>) -> Result<BakeP
         .into_iter()
         .find(|p| {
             preset.as_ref().is_none_or(|q| {
-                (q.irradiance_samples, q.added_samples, q.bounces)
-                    == (p.irradiance_samples, p.added_samples, p.bounces)
+                (q.irradiance_samples, q.added_samples, q.cache_samples, q.bounces)
+                    == (p.irradiance_samples, p.added_samples, p.cache_samples, p.bounces)
             })
         })
         .with_context(|| {

@@ -98,7 +98,7 @@ pub fn evaluate(
         .map(|v| load_rgb(&v.image))
         .collect::<Result<Vec<_>>>()?;
     let d = ViewData::build(gpu, &mesh, &cams, &imgs)?;
-    let albedo = read_albedo(&albedo_file(cache), scene.mesh.positions.len())?;
+    let albedo = read_albedo(&albedo_file(cache), geom.positions.len())?;
     let npix = d.pixels();
     let mut acc = Accuracy::default();
     let (mut es, mut al, mut ms) = (Vec::new(), Vec::new(), Vec::new());
@@ -134,7 +134,10 @@ pub fn evaluate(
             .iter()
             .map(|(l, _)| {
                 let g = gt.join(l).join(format!("{}.diffuse.exr", v.name));
-                let c = eadd_file(cache, &v.name, l);
+                let light = scene.lights.iter().find(|x| x.name == *l);
+                let c = light
+                    .map(|x| eadd_file(cache, &v.name, x))
+                    .unwrap_or_default();
                 (g.exists() && c.exists())
                     .then(|| Ok::<_, Error>((load_view_map(&c)?, load_rgb(&g)?)))
                     .transpose()

@@ -5,7 +5,8 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use super::random::{cosine_dir, onb, rand2};
+use super::random::{onb, rand2};
+use super::surface_cache::{CacheLayout, GpuCacheLayout};
 use super::views::{facing_normal, GpuViews, ViewData};
 use crate::error::Result;
 use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
@@ -155,8 +156,7 @@ struct Push {
     height: u32,
     samples: u32,
     seed: u32,
-    bounces: u32,
-    pad: [u32; 2],
+    pad: [u32; 3],
     light: GpuLight,
 }
 
@@ -164,10 +164,13 @@ pub struct AddedIrradiance {
     pipeline: Pipeline,
 }
 
-/// Samples, bounces and seed of the added-irradiance path tracer.
+/// Sample counts, bounces and seed of E_add.
 #[derive(Clone, Copy, Debug)]
 pub struct AddedParams {
+    /// Shadow rays per pixel for the direct part.
     pub samples: u32,
+    /// Paths per texel of the surface cache (the indirect part).
+    pub cache_samples: u32,
     pub bounces: u32,
     pub seed: u32,
 }
@@ -179,20 +182,20 @@ impl AddedIrradiance {
         })
     }
 
-    /// Records E_add of `view` for `light` into `out` (vec4 per pixel) and its indirect part
-    /// alone into `indirect`. `albedo`: per-vertex vec4.
+    /// Records E_add of `view` for `light` into `out` (vec4 per pixel): direct light per pixel
+    /// plus the light's surface cache `cache` (vec4 per texel of `layout`).
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         cmd: vk::CommandBuffer,
         mesh: &RayScene,
         views: &GpuViews,
-        albedo: &Buffer,
+        layout: &GpuCacheLayout,
+        cache: &Buffer,
         view: u32,
         light: &GpuLight,
         p: AddedParams,
         out: &Buffer,
-        indirect: &Buffer,
     ) -> Result<()> {
         let push = Push {
             view,
@@ -200,17 +203,17 @@ impl AddedIrradiance {
             height: views.height,
             samples: p.samples,
             seed: p.seed,
-            bounces: p.bounces,
-            pad: [0; 2],
+            pad: [0; 3],
             light: *light,
         };
         let mut binds = vec![
             (0, Bind::Accel(mesh.tlas.raw)),
             (5, Bind::Buffer(&mesh.positions)),
             (6, Bind::Buffer(&mesh.indices)),
-            (7, Bind::Buffer(albedo)),
-            (8, Bind::Buffer(out)),
-            (9, Bind::Buffer(indirect)),
+            (7, Bind::Buffer(&views.tri)),
+            (8, Bind::Buffer(cache)),
+            (9, Bind::Buffer(&layout.corners)),
+            (10, Bind::Buffer(out)),
         ];
         binds.extend(views.binds(1));
         self.pipeline.dispatch(
@@ -221,99 +224,56 @@ impl AddedIrradiance {
         )
     }
 
-    /// Runs one view: (E_add, its indirect part), vec4 per pixel each.
+    /// Runs one view: E_add, vec4 per pixel.
     #[allow(clippy::too_many_arguments)]
     pub fn run(
         &self,
         mesh: &RayScene,
         views: &GpuViews,
-        albedo: &Buffer,
+        layout: &GpuCacheLayout,
+        cache: &Buffer,
         view: u32,
         light: &GpuLight,
         p: AddedParams,
-    ) -> Result<(Map, Map)> {
-        let gpu = &self.pipeline.gpu;
-        let n = (views.width * views.height) as u64;
-        let ind = Buffer::new(
-            gpu,
-            "e_add indirect",
-            n * 16,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            crate::gpu::MemoryLocation::GpuOnly,
-        )?;
-        let total = super::views::run_pixels(gpu, views, |cmd, out| {
-            self.record(cmd, mesh, views, albedo, view, light, p, out, &ind)
-        })?;
-        let mut ind: Vec<[f32; 4]> = ind.download_vec()?;
-        ind.truncate(n as usize);
-        Ok((total, ind))
+    ) -> Result<Map> {
+        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
+            self.record(cmd, mesh, views, layout, cache, view, light, p, out)
+        })
     }
 }
 
 /// One vec4 per pixel of a view.
 pub type Map = Vec<[f32; 4]>;
 
-/// Bounces after which Russian roulette may end a path (as in the shader).
+/// Bounces after which Russian roulette may end a path (as in surface_cache.comp).
 pub const RR_START: u32 = 2;
 
-/// CPU reference of the same path tracer: (E_add, its indirect part).
+/// CPU reference of added_irradiance.comp: direct light per pixel plus the cache lookup.
+#[allow(clippy::too_many_arguments)]
 pub fn reference(
     mesh: &Mesh,
     d: &ViewData,
-    albedo: &[[f32; 4]],
+    layout: &CacheLayout,
+    cache: &[[f32; 4]],
     view: usize,
     light: &GpuLight,
     p: AddedParams,
-) -> (Map, Map) {
+) -> Map {
     let npix = d.pixels();
     (0..npix)
         .map(|px| {
             let gi = view * npix + px;
-            if d.pos[gi][3] <= 0.0 {
-                return ([0.0; 4], [0.0; 4]);
+            if d.pos[gi][3] <= 0.0 || d.tri[gi] == 0 {
+                return [0.0; 4];
             }
-            let n0 = facing_normal(d, gi, view);
-            let (mut sum, mut dir0) = (Vec3::ZERO, Vec3::ZERO);
-            for s in 0..p.samples {
-                let (mut x, mut n, mut thr) = (Vec3::from_slice(&d.pos[gi][..3]), n0, Vec3::ONE);
-                for b in 0..=p.bounces {
-                    let k = s * 64 + 2 * b;
-                    let e = thr * light.direct(mesh, x, n, rand2([gi as u32, k, p.seed]), 0.0);
-                    if b == 0 {
-                        dir0 += e;
-                    } else {
-                        sum += e;
-                    }
-                    if b == p.bounces {
-                        break;
-                    }
-                    let dir = cosine_dir(n, rand2([gi as u32, k + 1, p.seed]));
-                    let o = x + n * 1e-3;
-                    let Some(h) = crate::cpu::closest_hit(mesh, o, dir, 1e-3, 1e4) else {
-                        break;
-                    };
-                    let t = mesh.triangles[h.tri as usize];
-                    x = o + dir * h.t;
-                    n = mesh.face_normal(h.tri as usize);
-                    if n.dot(dir) > 0.0 {
-                        n = -n;
-                    }
-                    let a = |i: u32| Vec3::from_slice(&albedo[i as usize][..3]);
-                    let rho = (1.0 - h.bary[0] - h.bary[1]) * a(t[0])
-                        + h.bary[0] * a(t[1])
-                        + h.bary[1] * a(t[2]);
-                    thr *= rho.clamp(Vec3::ZERO, Vec3::ONE);
-                    if b + 1 >= RR_START {
-                        let q = thr.max_element().min(0.95);
-                        if rand2([gi as u32, k + 1, !p.seed])[0] >= q {
-                            break;
-                        }
-                        thr /= q;
-                    }
-                }
-            }
-            let (e, i) = ((dir0 + sum) / p.samples as f32, sum / p.samples as f32);
-            ([e.x, e.y, e.z, 1.0], [i.x, i.y, i.z, 1.0])
+            let n = facing_normal(d, gi, view);
+            let x = Vec3::from_slice(&d.pos[gi][..3]);
+            let dir = (0..p.samples)
+                .map(|s| light.direct(mesh, x, n, rand2([gi as u32, s * 64, p.seed]), 0.0))
+                .sum::<Vec3>()
+                / p.samples as f32;
+            let e = dir + layout.lookup(mesh, cache, d.tri[gi] as usize - 1, x);
+            e.extend(1.0).into()
         })
-        .unzip()
+        .collect()
 }

@@ -10,6 +10,7 @@ pub mod random;
 pub mod run;
 pub mod source_irradiance;
 pub mod storage;
+pub mod surface_cache;
 pub mod views;
 
 pub use added_irradiance::{AddedIrradiance, AddedParams, GpuLight};
@@ -18,4 +19,5 @@ pub use denoise::{Denoise, DenoiseParams};
 pub use mirror::Mirror;
 pub use run::{bake, BakeParams, BakeReport, Progress};
 pub use source_irradiance::SourceIrradiance;
+pub use surface_cache::{CacheLayout, GpuCacheLayout, SurfaceCache};
 pub use views::{GpuViews, ViewData};

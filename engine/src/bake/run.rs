@@ -13,32 +13,37 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::{
-    AddedIrradiance, AddedParams, AlbedoMesh, Denoise, DenoiseParams, GpuLight, GpuViews, Mirror,
-    SourceIrradiance, ViewData,
+    AddedIrradiance, AddedParams, AlbedoMesh, CacheLayout, Denoise, DenoiseParams, GpuCacheLayout,
+    GpuLight, GpuViews, Mirror, SourceIrradiance, SurfaceCache, ViewData,
 };
 use crate::error::{Error, Result};
 use crate::gpu::{vk, Buffer, Gpu, MemoryLocation, RayScene};
 use crate::scene::image::{load_rgb, write_exr, RgbImage};
-use crate::scene::{write_atomic, Scene};
+use crate::scene::{write_atomic, Light, Scene};
 
 /// Bump when a pass changes what it computes: old caches are then not reused.
-pub const BAKE_VERSION: u32 = 4;
+pub const BAKE_VERSION: u32 = 5;
 
 #[derive(Clone, Debug)]
 pub struct BakeParams {
     /// Rays per pixel for E_src (§4.1.1: 128).
     pub irradiance_samples: u32,
-    /// Paths per pixel and the most bounces for E_add. Indoors, walls of albedo ~0.6 pass on
-    /// most of the light: a direct + 1-bounce estimate reaches about 60% of the true irradiance
-    /// (measured on the demo room), and 3 bounces left E_add 0.85–0.88× the truth on plain
-    /// walls. The presets allow 6, the depth of the ground truth's path tracer; Russian
-    /// roulette past 2 bounces keeps the mean path short.
+    /// Shadow rays per pixel for E_add's direct part.
     pub added_samples: u32,
+    /// Paths per texel of the surface cache (E_add's indirect part), and the most bounces.
+    /// Indoors, walls of albedo ~0.6 pass on most of the light: a direct + 1-bounce estimate
+    /// reaches about 60% of the true irradiance (measured on the demo room), and 3 bounces left
+    /// E_add 0.85–0.88× the truth on plain walls. The presets allow 6, the depth of the ground
+    /// truth's path tracer; Russian roulette past 2 bounces keeps the mean path short.
+    pub cache_samples: u32,
     pub bounces: u32,
+    /// The bake mesh's longest edge (m): longer edges are split, so the surface cache (one
+    /// texel per vertex) and the albedo mesh are at least this dense.
+    pub texel_size: f32,
     pub seed: u32,
     /// Slice of views to bake (all by default).
     pub views: Option<Range<usize>>,
-    /// The E_src denoiser (radius 0: off).
+    /// The E_src denoiser (radius 0: off, and the surface cache's filter off too).
     pub denoise: DenoiseParams,
     /// Also store every map as BC6H (`<map>.bc6h`); off = the uncompressed switch (EXR only).
     pub compress: bool,
@@ -54,15 +59,32 @@ pub fn bake_mesh(scene: &Scene, p: &BakeParams) -> crate::scene::Mesh {
         crate::scene::meshproc::smooth(&mut m, 2);
         crate::scene::meshproc::snap_planes(&mut m, &Default::default());
     }
+    crate::scene::meshproc::refine(&mut m, p.texel_size);
     m
 }
 
+/// The presets' texel size: MVS meshes of a room are about this dense already (the demo's
+/// median edge is 5 cm), and the indirect light varies slowly at this scale.
+pub const TEXEL_SIZE: f32 = 0.1;
+
 impl BakeParams {
+    /// E_add's parameters.
+    pub fn added(&self) -> AddedParams {
+        AddedParams {
+            samples: self.added_samples,
+            cache_samples: self.cache_samples,
+            bounces: self.bounces,
+            seed: self.seed,
+        }
+    }
+
     pub fn final_quality() -> BakeParams {
         BakeParams {
             irradiance_samples: 128,
             added_samples: 32,
+            cache_samples: 256,
             bounces: 6,
+            texel_size: TEXEL_SIZE,
             seed: 1,
             views: None,
             denoise: DenoiseParams::default(),
@@ -74,7 +96,9 @@ impl BakeParams {
         BakeParams {
             irradiance_samples: 32,
             added_samples: 8,
+            cache_samples: 64,
             bounces: 6,
+            texel_size: TEXEL_SIZE,
             seed: 1,
             views: None,
             denoise: DenoiseParams::default(),
@@ -129,9 +153,16 @@ impl Fnv {
 pub fn cache_dir(scene: &Scene, p: &BakeParams) -> Result<PathBuf> {
     let mut h = Fnv::new();
     h.bytes(&BAKE_VERSION.to_le_bytes());
-    for v in [p.irradiance_samples, p.added_samples, p.bounces, p.seed] {
+    for v in [
+        p.irradiance_samples,
+        p.added_samples,
+        p.cache_samples,
+        p.bounces,
+        p.seed,
+    ] {
         h.bytes(&v.to_le_bytes());
     }
+    h.bytes(&p.texel_size.to_le_bytes());
     h.bytes(&[p.mesh_process as u8]);
     let d = p.denoise;
     for v in [d.radius as f32, d.sigma_px, d.sigma_depth, d.normal_power] {
@@ -143,7 +174,8 @@ pub fn cache_dir(scene: &Scene, p: &BakeParams) -> Result<PathBuf> {
         h.bytes(bytemuck::bytes_of(&v.camera.to_gpu(0.0, 0.0)));
         h.file(&v.image)?;
     }
-    for l in &scene.lights {
+    // Original lights shape E_src and the albedo; added lights have entries of their own.
+    for l in scene.lights.iter().filter(|l| l.original) {
         h.bytes(l.name.as_bytes());
         h.bytes(bytemuck::bytes_of(&GpuLight::new(l)));
     }
@@ -168,7 +200,7 @@ fn write_params(cache: &Path, p: &BakeParams) -> Result<()> {
     let d = p.denoise;
     let doc = serde_json::json!({
         "irradiance_samples": p.irradiance_samples, "added_samples": p.added_samples,
-        "bounces": p.bounces, "seed": p.seed, "mesh_process": p.mesh_process,
+        "cache_samples": p.cache_samples, "texel_size": p.texel_size, "bounces": p.bounces, "seed": p.seed, "mesh_process": p.mesh_process,
         "denoise": { "radius": d.radius, "sigma_px": d.sigma_px, "sigma_depth": d.sigma_depth,
                      "normal_power": d.normal_power },
     });
@@ -183,7 +215,9 @@ fn read_params(path: &Path) -> Option<BakeParams> {
     Some(BakeParams {
         irradiance_samples: u("irradiance_samples")?,
         added_samples: u("added_samples")?,
+        cache_samples: u("cache_samples")?,
         bounces: u("bounces")?,
+        texel_size: v.get("texel_size")?.as_f64()? as f32,
         seed: u("seed")?,
         views: None,
         denoise: DenoiseParams {
@@ -200,12 +234,7 @@ fn read_params(path: &Path) -> Option<BakeParams> {
 /// Whether every map the frame reads is in the cache for `p`.
 pub fn is_complete(scene: &Scene, p: &BakeParams) -> Result<bool> {
     let dir = cache_dir(scene, p)?;
-    let added: Vec<&str> = scene
-        .lights
-        .iter()
-        .filter(|l| !l.original)
-        .map(|l| l.name.as_str())
-        .collect();
+    let added: Vec<&Light> = scene.lights.iter().filter(|l| !l.original).collect();
     Ok(scene.views.iter().all(|v| {
         esrc_file(&dir, &v.name).exists()
             && msrc_file(&dir, &v.name).exists()
@@ -243,8 +272,18 @@ pub fn esrc_file(cache: &Path, view: &str) -> PathBuf {
 pub fn msrc_file(cache: &Path, view: &str) -> PathBuf {
     cache.join(format!("{view}.msrc.exr"))
 }
-pub fn eadd_file(cache: &Path, view: &str, light: &str) -> PathBuf {
-    cache.join(format!("{view}.eadd.{light}.exr"))
+/// An added light's entry in a bake: its surface cache and E_add maps, keyed by what the light
+/// is (shape, place, size, radiance), not its name, so moving one light re-bakes it alone.
+pub fn light_dir(cache: &Path, light: &Light) -> PathBuf {
+    let mut h = Fnv::new();
+    h.bytes(bytemuck::bytes_of(&GpuLight::new(light)));
+    cache.join(format!("light-{:016x}", h.0))
+}
+pub fn eadd_file(cache: &Path, view: &str, light: &Light) -> PathBuf {
+    light_dir(cache, light).join(format!("{view}.eadd.exr"))
+}
+pub fn cache_file(cache: &Path, light: &Light) -> PathBuf {
+    light_dir(cache, light).join("surface_cache.bin")
 }
 pub fn albedo_file(cache: &Path) -> PathBuf {
     cache.join("albedo_mesh.bin")
@@ -284,13 +323,10 @@ pub fn bake(
     std::fs::create_dir_all(&cache).map_err(|e| Error::io(&cache, e))?;
     write_params(&cache, p)?;
     // Temp files of an interrupted run are never read; remove them.
-    if let Ok(rd) = std::fs::read_dir(&cache) {
-        for e in rd.flatten() {
-            if e.file_name().to_string_lossy().ends_with(".tmp")
-                || e.file_name().to_string_lossy().contains(".tmp.")
-            {
-                let _ = std::fs::remove_file(e.path());
-            }
+    for path in entry_files(&cache) {
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        if name.ends_with(".tmp") || name.contains(".tmp.") {
+            let _ = std::fs::remove_file(&path);
         }
     }
     let nv = scene.views.len();
@@ -425,21 +461,11 @@ pub fn bake(
     let albedo_buf =
         Buffer::from_slice(gpu, "albedo", vk::BufferUsageFlags::STORAGE_BUFFER, &albedo)?;
 
-    // Stage 3: source mirror images and added irradiance per user light.
-    let ind = map_buffer("e_add indirect")?;
+    // Stage 3: source mirror images.
     let mirror = Mirror::new(gpu)?;
-    let added = AddedIrradiance::new(gpu)?;
-    let user_lights: Vec<_> = scene.lights.iter().filter(|l| !l.original).collect();
-    let ap = AddedParams {
-        samples: p.added_samples,
-        bounces: p.bounces,
-        seed: p.seed,
-    };
-    let (mut mirror_s, mut added_s, mut added_rays, mut done, mut added_done) =
-        (0.0, 0.0, 0u64, 0, 0);
+    let (t0, mut done) = (Instant::now(), 0);
     for (k, i) in slice.clone().enumerate() {
         let name = &scene.views[i].name;
-        let t = Instant::now();
         if !msrc_file(&cache, name).exists() {
             let mut res = Ok(());
             gpu.submit(|cmd| res = mirror.record(cmd, &mesh, &views, i as u32, &out))?;
@@ -447,65 +473,147 @@ pub fn bake(
             write_exr(&msrc_file(&cache, name), &to_image(w, h, &read_out(&out)?))?;
             done += 1;
         }
-        mirror_s += t.elapsed().as_secs_f64();
-        for l in &user_lights {
-            let f = eadd_file(&cache, name, &l.name);
-            if f.exists() {
-                continue;
-            }
-            let t = Instant::now();
-            let gl = GpuLight::new(l);
-            let mut res = Ok(());
-            // The indirect part is filtered like E_src; the direct part keeps its sharp shadows.
-            let filter = p.denoise.radius > 0;
-            let total = if filter { &noisy } else { &out };
-            gpu.submit(|cmd| {
-                res = added
-                    .record(
-                        cmd,
-                        &mesh,
-                        &views,
-                        &albedo_buf,
-                        i as u32,
-                        &gl,
-                        ap,
-                        total,
-                        &ind,
-                    )
-                    .and_then(|_| {
-                        if !filter {
-                            return Ok(());
-                        }
-                        crate::gpu::full_barrier(gpu, cmd);
-                        dn.record(cmd, &views, i as u32, p.denoise, &ind, Some(&noisy), &out)
-                    })
-            })?;
-            res?;
-            write_exr(&f, &to_image(w, h, &read_out(&out)?))?;
-            added_s += t.elapsed().as_secs_f64();
-            added_done += 1;
-            // Per path: (bounces + 1) shadow rays and `bounces` continuation rays at most;
-            // Russian roulette ends most paths sooner, so this rate is an upper bound.
-            added_rays += npix * p.added_samples as u64 * (2 * p.bounces as u64 + 1);
-        }
-        progress.update(
-            "mirror + added irradiance",
-            k + 1,
-            slice.len(),
-            added_rays + npix * (k as u64 + 1),
-        );
+        progress.update("mirror", k + 1, slice.len(), npix * (k as u64 + 1));
     }
-    report
-        .stages
-        .push(("mirror".into(), mirror_s, npix * done as u64, done));
-    report
-        .stages
-        .push(("added irradiance".into(), added_s, added_rays, added_done));
+    report.stages.push((
+        "mirror".into(),
+        t0.elapsed().as_secs_f64(),
+        npix * done as u64,
+        done,
+    ));
+
+    // Stage 4: per added light, its surface cache, then its E_add map per view.
+    let lights: Vec<&Light> = scene.lights.iter().filter(|l| !l.original).collect();
+    added_stage(
+        gpu,
+        &mesh,
+        &geom,
+        &views,
+        &albedo_buf,
+        &cache,
+        &lights,
+        scene,
+        p,
+        progress,
+        &mut report,
+    )?;
     report.complete_views = slice.len();
     if p.compress {
         compress_missing(&cache)?;
     }
     Ok(report)
+}
+
+/// Rounds of the surface cache's filter along the mesh (off with the denoiser).
+const CACHE_FILTER_ROUNDS: u32 = 2;
+
+/// Bakes the lights' entries that are missing: the surface cache (traced once per light, kept
+/// as `light-<key>/surface_cache.bin`) and the E_add map of every view in the slice.
+#[allow(clippy::too_many_arguments)]
+fn added_stage(
+    gpu: &Arc<Gpu>,
+    mesh: &RayScene,
+    geom: &crate::scene::Mesh,
+    views: &GpuViews,
+    albedo: &Buffer,
+    cache: &Path,
+    lights: &[&Light],
+    scene: &Scene,
+    p: &BakeParams,
+    progress: &mut dyn Progress,
+    report: &mut BakeReport,
+) -> Result<()> {
+    let slice = p.views.clone().unwrap_or(0..scene.views.len());
+    let ap = p.added();
+    let layout = CacheLayout::new(geom);
+    let glayout = GpuCacheLayout::upload(gpu, &layout)?;
+    let (sc, added) = (SurfaceCache::new(gpu)?, AddedIrradiance::new(gpu)?);
+    let (mut cache_s, mut cache_rays, mut caches) = (0.0, 0u64, 0);
+    let (mut added_s, mut added_rays, mut maps) = (0.0, 0u64, 0);
+    let npix = (views.width * views.height) as u64;
+    for (li, l) in lights.iter().enumerate() {
+        let todo: Vec<usize> = slice
+            .clone()
+            .filter(|&i| !eadd_file(cache, &scene.views[i].name, l).exists())
+            .collect();
+        if todo.is_empty() {
+            continue;
+        }
+        let gl = GpuLight::new(l);
+        let dir = light_dir(cache, l);
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        let cf = cache_file(cache, l);
+        let values = if cf.exists() {
+            super::surface_cache::read(&cf, layout.texels())?
+        } else {
+            let t = Instant::now();
+            let stage = format!("surface cache {}/{}", li + 1, lights.len());
+            let raw = sc.run(mesh, &glayout, albedo, &gl, ap, &mut |d, n| {
+                progress.update(&stage, d as usize, n as usize, 0)
+            })?;
+            let rounds = if p.denoise.radius > 0 {
+                CACHE_FILTER_ROUNDS
+            } else {
+                0
+            };
+            let v = layout.filter(&raw, rounds);
+            super::surface_cache::write(&cf, &v)?;
+            cache_s += t.elapsed().as_secs_f64();
+            cache_rays += super::surface_cache::max_rays(layout.texels(), ap);
+            caches += 1;
+            v
+        };
+        let cb = Buffer::from_slice(
+            gpu,
+            "surface cache",
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            &values,
+        )?;
+        let t = Instant::now();
+        for (k, &i) in todo.iter().enumerate() {
+            let m = added.run(mesh, views, &glayout, &cb, i as u32, &gl, ap)?;
+            write_exr(
+                &eadd_file(cache, &scene.views[i].name, l),
+                &to_image(views.width, views.height, &m),
+            )?;
+            maps += 1;
+            added_rays += npix * ap.samples as u64;
+            progress.update(
+                &format!("added irradiance {}/{}", li + 1, lights.len()),
+                k + 1,
+                todo.len(),
+                added_rays,
+            );
+        }
+        added_s += t.elapsed().as_secs_f64();
+    }
+    report
+        .stages
+        .push(("surface cache".into(), cache_s, cache_rays, caches));
+    report
+        .stages
+        .push(("added irradiance".into(), added_s, added_rays, maps));
+    Ok(())
+}
+
+/// The files of a bake cache: its own and those of its lights' entries (`light-*/`).
+fn entry_files(cache: &Path) -> Vec<PathBuf> {
+    let list = |d: &Path| -> Vec<PathBuf> {
+        let mut v: Vec<PathBuf> = std::fs::read_dir(d)
+            .map(|rd| rd.flatten().map(|e| e.path()).collect())
+            .unwrap_or_default();
+        v.sort();
+        v
+    };
+    let mut out = Vec::new();
+    for p in list(cache) {
+        if p.is_dir() {
+            out.extend(list(&p).into_iter().filter(|f| f.is_file()));
+        } else {
+            out.push(p);
+        }
+    }
+    out
 }
 
 /// BC6H copy of a cached map: `v000.esrc.exr` → `v000.esrc.bc6h`.
@@ -516,9 +624,7 @@ pub fn bc6h_file(exr: &Path) -> PathBuf {
 /// Encodes every cached EXR map that has no BC6H copy yet (the EXR is the finished entry; its
 /// BC6H copy is derived, so a kill between the two only costs a re-encode).
 fn compress_missing(cache: &Path) -> Result<()> {
-    let rd = std::fs::read_dir(cache).map_err(|e| Error::io(cache, e))?;
-    for e in rd.flatten() {
-        let path = e.path();
+    for path in entry_files(cache) {
         if path.extension().is_none_or(|x| x != "exr") || bc6h_file(&path).exists() {
             continue;
         }

@@ -116,6 +116,8 @@ pub struct GpuViews {
     pub pos: Buffer,
     pub nrm: Buffer,
     pub img: Buffer,
+    /// Per view and pixel: proxy triangle id + 1 (0: none).
+    pub tri: Buffer,
     pub count: u32,
     pub width: u32,
     pub height: u32,
@@ -130,6 +132,7 @@ impl GpuViews {
             pos: Buffer::from_slice(gpu, "view positions", u, &d.pos)?,
             nrm: Buffer::from_slice(gpu, "view normals", u, &d.nrm)?,
             img: Buffer::from_slice(gpu, "view images", u, &d.img)?,
+            tri: Buffer::from_slice(gpu, "view triangles", u, &d.tri)?,
             count: d.cameras.len() as u32,
             width: d.width,
             height: d.height,

@@ -148,7 +148,7 @@ impl ViewMaps {
         };
         let msrc = files(&|v| run::msrc_file(&cache, v));
         let esrc = files(&|v| run::esrc_file(&cache, v));
-        let lights = super::added_lights(scene);
+        let lights: Vec<_> = scene.lights.iter().filter(|l| !l.original).collect();
         let mut eadd = Some(Vec::new());
         for l in &lights {
             match (files(&|v| run::eadd_file(&cache, v, l)), eadd.as_mut()) {

@@ -261,7 +261,7 @@ impl FrameScene {
 /// Reads a scene's images and its complete bake cache into host maps.
 pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
     let cache = bakerun::cache_dir(scene, params)?;
-    let lights = added_lights(scene);
+    let lights: Vec<_> = scene.lights.iter().filter(|l| !l.original).collect();
     let mut m = HostMaps::default();
     let load = |path: &Path| -> Result<Vec<[f32; 4]>> {
         if !path.exists() {

@@ -163,3 +163,69 @@ pub fn snap_planes(mesh: &mut Mesh, p: &PlaneParams) -> Vec<Plane> {
     }
     planes
 }
+
+/// Splits every edge longer than `max_edge` at its midpoint, shared by both triangles so the
+/// mesh stays watertight, until none is longer; the shape does not change. The bake stores
+/// per-vertex quantities (albedo, the surface cache), so a hand-made mesh of a few large
+/// triangles needs vertices at least this dense.
+pub fn refine(mesh: &mut Mesh, max_edge: f32) {
+    let too_long = |m: &Mesh, a: u32, b: u32| {
+        Vec3::from(m.positions[a as usize]).distance(Vec3::from(m.positions[b as usize])) > max_edge
+    };
+    // Each pass at least halves every split edge; 24 passes cover 16 million : 1.
+    for _ in 0..24 {
+        let mut mids = std::collections::HashMap::new();
+        for t in &mesh.triangles {
+            for k in 0..3 {
+                let (a, b) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+                if !mids.contains_key(&(a, b)) && too_long(mesh, a, b) {
+                    mids.insert((a, b), mesh.positions.len() as u32);
+                    let m = (Vec3::from(mesh.positions[a as usize])
+                        + Vec3::from(mesh.positions[b as usize]))
+                        / 2.0;
+                    mesh.positions.push(m.into());
+                    if let Some(c) = mesh.colors.as_mut() {
+                        let (ca, cb) = (Vec3::from(c[a as usize]), Vec3::from(c[b as usize]));
+                        c.push(((ca + cb) / 2.0).into());
+                    }
+                }
+            }
+        }
+        if mids.is_empty() {
+            return;
+        }
+        let mid = |a: u32, b: u32| mids.get(&(a.min(b), a.max(b))).copied();
+        let mut out = Vec::with_capacity(mesh.triangles.len() * 2);
+        for &t in &mesh.triangles {
+            split_triangle(t, |k| mid(t[k], t[(k + 1) % 3]), &mut out);
+        }
+        mesh.triangles = out;
+    }
+}
+
+/// The triangles of `t` once the edges with a midpoint (edge k runs from corner k to k + 1)
+/// are split; winding is kept.
+fn split_triangle(t: [u32; 3], mid: impl Fn(usize) -> Option<u32>, out: &mut Vec<[u32; 3]>) {
+    let m = [mid(0), mid(1), mid(2)];
+    match m.iter().filter(|x| x.is_some()).count() {
+        0 => out.push(t),
+        1 => {
+            // Rotate so the split edge is edge 0: (a, m, c), (m, b, c).
+            let k = m.iter().position(|x| x.is_some()).unwrap();
+            let (a, b, c, x) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3], m[k].unwrap());
+            out.extend([[a, x, c], [x, b, c]]);
+        }
+        2 => {
+            // Rotate so edge 0 is the unsplit one: corners a, b, c with midpoints on b–c
+            // (mbc) and c–a (mca).
+            let k = m.iter().position(|x| x.is_none()).unwrap();
+            let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            let (mbc, mca) = (m[(k + 1) % 3].unwrap(), m[(k + 2) % 3].unwrap());
+            out.extend([[mca, mbc, c], [a, b, mbc], [a, mbc, mca]]);
+        }
+        _ => {
+            let [x, y, z] = [m[0].unwrap(), m[1].unwrap(), m[2].unwrap()];
+            out.extend([[t[0], x, z], [x, t[1], y], [z, y, t[2]], [x, y, z]]);
+        }
+    }
+}
