@@ -788,3 +788,97 @@ fn bc6h_storage_decodes_on_the_device_with_high_log_psnr() {
     }
     common::assert_no_validation_errors(&gpu);
 }
+
+/// Copies a scene directory without its bake cache.
+fn copy_scene(from: &std::path::Path, to: &std::path::Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().map(|e| e.unwrap()) {
+        let (src, dst) = (e.path(), to.join(e.file_name()));
+        if e.file_name() == ".relit" {
+            continue;
+        }
+        if src.is_dir() {
+            copy_scene(&src, &dst);
+        } else {
+            std::fs::copy(&src, &dst).unwrap();
+        }
+    }
+}
+
+#[test]
+fn moving_a_light_rebakes_its_entry_alone_and_matches_a_fresh_bake() {
+    let d = bake_scene("bake-move");
+    let s = d.to_str().unwrap().to_string();
+    let args = |s: &str| {
+        relit(&[
+            "bake",
+            s,
+            "--quality",
+            "preview",
+            "--rays",
+            "16",
+            "--added-samples",
+            "4",
+            "--cache-samples",
+            "8",
+        ])
+    };
+    assert!(args(&s).status.success());
+    let before = cache_files(&d);
+    // Move the first added light 0.3 m along x in scene.json.
+    let path = d.join("scene.json");
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let light = doc["lights"]
+        .as_array_mut()
+        .unwrap()
+        .iter_mut()
+        .find(|l| !l["original"].as_bool().unwrap_or(false))
+        .unwrap();
+    let key = if light.get("corner").is_some() {
+        "corner"
+    } else {
+        "center"
+    };
+    let x = light[key][0].as_f64().unwrap();
+    light[key][0] = serde_json::json!(x + 0.3);
+    std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+
+    let out = args(&s);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    for line in [
+        "source irradiance: cached",
+        "mirror: cached",
+        "surface cache: 1 item(s)",
+        "added irradiance: 4 item(s)",
+    ] {
+        assert!(text.contains(line), "expected \"{line}\" in:\n{text}");
+    }
+    // Nothing that was there changed; the new files are one light entry: its cache and its
+    // 4 maps (EXR + BC6H).
+    let after = cache_files(&d);
+    for (name, bytes) in &before {
+        let now = after.iter().find(|f| &f.0 == name).expect(name);
+        assert!(&now.1 == bytes, "{name} was rewritten");
+    }
+    let new: Vec<&String> = after
+        .iter()
+        .map(|f| &f.0)
+        .filter(|n| before.iter().all(|b| &b.0 != *n))
+        .collect();
+    assert_eq!(new.len(), 1 + 4 * 2, "{new:?}");
+    let entry = new[0].split('/').next().unwrap();
+    assert!(entry.starts_with("light-") && new.iter().all(|n| n.starts_with(entry)));
+
+    // A fresh bake of the scene as it is now gives the same files, byte for byte.
+    let fresh = common::tempdir("bake-move-fresh");
+    copy_scene(&d, &fresh);
+    assert!(args(fresh.to_str().unwrap()).status.success());
+    let f = cache_files(&fresh);
+    assert_eq!(f.len(), after.len() - 9, "the old entry is not in the fresh bake");
+    for (name, bytes) in &f {
+        let ours = after.iter().find(|a| &a.0 == name).expect(name);
+        assert!(&ours.1 == bytes, "{name} differs from a fresh bake");
+    }
+}

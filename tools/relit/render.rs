@@ -140,6 +140,15 @@ pub fn open_renderer(gpu: &Arc<Gpu>, scene: &Scene, a: &FrameArgs) -> Result<(Re
         MapsArg::Auto if cpu_device || !gpu.caps.bc6h_sampled_linear => MapFormat::Rgba16f,
         MapsArg::Auto => MapFormat::Bc6h,
     };
+    // Added lights with no entry yet (added or moved since the bake) are baked now.
+    let missing = relit_engine::bake::run::missing_lights(scene, &params)?;
+    if !missing.is_empty() {
+        let names: Vec<&str> = missing.iter().map(|l| l.name.as_str()).collect();
+        eprintln!("baking light(s) {} (not in the bake yet)", names.join(", "));
+        let t = std::time::Instant::now();
+        relit_engine::bake::run::bake_lights(gpu, scene, &params, &mut |_: &str, _, _, _| {})?;
+        eprintln!("  done in {:.1} s", t.elapsed().as_secs_f64());
+    }
     let fs = FrameScene::load(gpu, scene, &params, format)?;
     let net = match &a.weights {
         Some(w) => Some(Network::load(gpu, w, storage)?),

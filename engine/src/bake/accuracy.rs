@@ -136,7 +136,7 @@ pub fn evaluate(
                 let g = gt.join(l).join(format!("{}.diffuse.exr", v.name));
                 let light = scene.lights.iter().find(|x| x.name == *l);
                 let c = light
-                    .map(|x| eadd_file(cache, &v.name, x))
+                    .map(|x| eadd_file(cache, &v.name, x, p))
                     .unwrap_or_default();
                 (g.exists() && c.exists())
                     .then(|| Ok::<_, Error>((load_view_map(&c)?, load_rgb(&g)?)))

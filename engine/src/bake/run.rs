@@ -31,6 +31,8 @@ pub struct BakeParams {
     /// Shadow rays per pixel for E_add's direct part.
     pub added_samples: u32,
     /// Paths per texel of the surface cache (E_add's indirect part), and the most bounces.
+    /// 32 (preview) is enough: on a scenegen room, 32, 64 and 128 paths gave the same E_add
+    /// error against Mitsuba (0.129, 0.129, 0.128), the filter taking the rest of the noise.
     /// Indoors, walls of albedo ~0.6 pass on most of the light: a direct + 1-bounce estimate
     /// reaches about 60% of the true irradiance (measured on the demo room), and 3 bounces left
     /// E_add 0.85–0.88× the truth on plain walls. The presets allow 6, the depth of the ground
@@ -82,7 +84,7 @@ impl BakeParams {
         BakeParams {
             irradiance_samples: 128,
             added_samples: 32,
-            cache_samples: 256,
+            cache_samples: 128,
             bounces: 6,
             texel_size: TEXEL_SIZE,
             seed: 1,
@@ -96,7 +98,7 @@ impl BakeParams {
         BakeParams {
             irradiance_samples: 32,
             added_samples: 8,
-            cache_samples: 64,
+            cache_samples: 32,
             bounces: 6,
             texel_size: TEXEL_SIZE,
             seed: 1,
@@ -153,13 +155,8 @@ impl Fnv {
 pub fn cache_dir(scene: &Scene, p: &BakeParams) -> Result<PathBuf> {
     let mut h = Fnv::new();
     h.bytes(&BAKE_VERSION.to_le_bytes());
-    for v in [
-        p.irradiance_samples,
-        p.added_samples,
-        p.cache_samples,
-        p.bounces,
-        p.seed,
-    ] {
+    // E_add's sample counts and bounces key the light entries (`light_dir`), not the bake.
+    for v in [p.irradiance_samples, p.seed] {
         h.bytes(&v.to_le_bytes());
     }
     h.bytes(&p.texel_size.to_le_bytes());
@@ -232,14 +229,93 @@ fn read_params(path: &Path) -> Option<BakeParams> {
 }
 
 /// Whether every map the frame reads is in the cache for `p`.
+/// Added lights' entries are not needed: `bake_lights` bakes a missing one when it is used.
 pub fn is_complete(scene: &Scene, p: &BakeParams) -> Result<bool> {
     let dir = cache_dir(scene, p)?;
-    let added: Vec<&Light> = scene.lights.iter().filter(|l| !l.original).collect();
-    Ok(scene.views.iter().all(|v| {
-        esrc_file(&dir, &v.name).exists()
-            && msrc_file(&dir, &v.name).exists()
-            && added.iter().all(|l| eadd_file(&dir, &v.name, l).exists())
-    }))
+    Ok(albedo_file(&dir).exists()
+        && scene
+            .views
+            .iter()
+            .all(|v| esrc_file(&dir, &v.name).exists() && msrc_file(&dir, &v.name).exists()))
+}
+
+/// The scene's added lights whose entry in the bake for `p` lacks a view's map.
+pub fn missing_lights<'a>(scene: &'a Scene, p: &BakeParams) -> Result<Vec<&'a Light>> {
+    let dir = cache_dir(scene, p)?;
+    Ok(scene
+        .lights
+        .iter()
+        .filter(|l| !l.original)
+        .filter(|l| {
+            scene
+                .views
+                .iter()
+                .any(|v| !eadd_file(&dir, &v.name, l, p).exists())
+        })
+        .collect())
+}
+
+/// Bakes the entries of added lights that have none yet (a light added or moved since the
+/// bake), on a complete bake; the frame calls this before it loads the maps.
+pub fn bake_lights(
+    gpu: &Arc<Gpu>,
+    scene: &Scene,
+    p: &BakeParams,
+    progress: &mut dyn Progress,
+) -> Result<BakeReport> {
+    let cache = cache_dir(scene, p)?;
+    let mut report = BakeReport {
+        cache: cache.clone(),
+        ..Default::default()
+    };
+    let lights = missing_lights(scene, p)?;
+    if lights.is_empty() {
+        return Ok(report);
+    }
+    let s = Setup::new(gpu, scene, p)?;
+    let albedo = read_albedo(&albedo_file(&cache), s.geom.positions.len())?;
+    let ab = Buffer::from_slice(gpu, "albedo", vk::BufferUsageFlags::STORAGE_BUFFER, &albedo)?;
+    let p = BakeParams {
+        views: None,
+        ..p.clone()
+    };
+    added_stage(
+        gpu, &s.mesh, &s.geom, &s.views, &ab, &cache, &lights, scene, &p, progress,
+        &mut report,
+    )?;
+    if p.compress {
+        compress_missing(&cache)?;
+    }
+    Ok(report)
+}
+
+/// What every bake stage reads: the bake mesh, traceable, and the views with their G-buffers.
+struct Setup {
+    geom: crate::scene::Mesh,
+    mesh: RayScene,
+    data: ViewData,
+    views: GpuViews,
+}
+
+impl Setup {
+    fn new(gpu: &Arc<Gpu>, scene: &Scene, p: &BakeParams) -> Result<Setup> {
+        let images = scene
+            .views
+            .iter()
+            .map(|v| load_rgb(&v.image))
+            .collect::<Result<Vec<_>>>()?;
+        let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
+        let geom = bake_mesh(scene, p);
+        let mesh = RayScene::new(gpu, &geom.positions, &geom.triangles)?;
+        let data = ViewData::build(gpu, &mesh, &cams, &images)?;
+        let views = GpuViews::upload(gpu, &data)?;
+        Ok(Setup {
+            geom,
+            mesh,
+            data,
+            views,
+        })
+    }
 }
 
 /// The complete, current bakes of `scene` (their key matches the scene's files as they are
@@ -273,17 +349,21 @@ pub fn msrc_file(cache: &Path, view: &str) -> PathBuf {
     cache.join(format!("{view}.msrc.exr"))
 }
 /// An added light's entry in a bake: its surface cache and E_add maps, keyed by what the light
-/// is (shape, place, size, radiance), not its name, so moving one light re-bakes it alone.
-pub fn light_dir(cache: &Path, light: &Light) -> PathBuf {
+/// is (shape, place, size, radiance; not its name) and E_add's parameters, so moving one light
+/// or changing E_add's sample counts re-bakes the light entries alone.
+pub fn light_dir(cache: &Path, light: &Light, p: &BakeParams) -> PathBuf {
     let mut h = Fnv::new();
     h.bytes(bytemuck::bytes_of(&GpuLight::new(light)));
+    for v in [p.added_samples, p.cache_samples, p.bounces] {
+        h.bytes(&v.to_le_bytes());
+    }
     cache.join(format!("light-{:016x}", h.0))
 }
-pub fn eadd_file(cache: &Path, view: &str, light: &Light) -> PathBuf {
-    light_dir(cache, light).join(format!("{view}.eadd.exr"))
+pub fn eadd_file(cache: &Path, view: &str, light: &Light, p: &BakeParams) -> PathBuf {
+    light_dir(cache, light, p).join(format!("{view}.eadd.exr"))
 }
-pub fn cache_file(cache: &Path, light: &Light) -> PathBuf {
-    light_dir(cache, light).join("surface_cache.bin")
+pub fn cache_file(cache: &Path, light: &Light, p: &BakeParams) -> PathBuf {
+    light_dir(cache, light, p).join("surface_cache.bin")
 }
 pub fn albedo_file(cache: &Path) -> PathBuf {
     cache.join("albedo_mesh.bin")
@@ -341,16 +421,12 @@ pub fn bake(
         cache: cache.clone(),
         ..Default::default()
     };
-    let images = scene
-        .views
-        .iter()
-        .map(|v| load_rgb(&v.image))
-        .collect::<Result<Vec<_>>>()?;
-    let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
-    let geom = bake_mesh(scene, p);
-    let mesh = RayScene::new(gpu, &geom.positions, &geom.triangles)?;
-    let data = ViewData::build(gpu, &mesh, &cams, &images)?;
-    let views = GpuViews::upload(gpu, &data)?;
+    let Setup {
+        geom,
+        mesh,
+        data,
+        views,
+    } = Setup::new(gpu, scene, p)?;
     let (w, h) = (data.width, data.height);
     let npix = (w * h) as u64;
     // One vec4 per pixel of a view, on the device.
@@ -416,7 +492,7 @@ pub fn bake(
         .views
         .iter()
         .all(|v| esrc_file(&cache, &v.name).exists());
-    let nverts = scene.mesh.positions.len();
+    let nverts = geom.positions.len();
     if !have_all {
         if p.compress {
             compress_missing(&cache)?;
@@ -534,15 +610,15 @@ fn added_stage(
     for (li, l) in lights.iter().enumerate() {
         let todo: Vec<usize> = slice
             .clone()
-            .filter(|&i| !eadd_file(cache, &scene.views[i].name, l).exists())
+            .filter(|&i| !eadd_file(cache, &scene.views[i].name, l, p).exists())
             .collect();
         if todo.is_empty() {
             continue;
         }
         let gl = GpuLight::new(l);
-        let dir = light_dir(cache, l);
+        let dir = light_dir(cache, l, p);
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        let cf = cache_file(cache, l);
+        let cf = cache_file(cache, l, p);
         let values = if cf.exists() {
             super::surface_cache::read(&cf, layout.texels())?
         } else {
@@ -573,7 +649,7 @@ fn added_stage(
         for (k, &i) in todo.iter().enumerate() {
             let m = added.run(mesh, views, &glayout, &cb, i as u32, &gl, ap)?;
             write_exr(
-                &eadd_file(cache, &scene.views[i].name, l),
+                &eadd_file(cache, &scene.views[i].name, l, p),
                 &to_image(views.width, views.height, &m),
             )?;
             maps += 1;

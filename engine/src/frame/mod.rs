@@ -286,7 +286,7 @@ pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
     }
     for l in &lights {
         for v in &scene.views {
-            m.eadd.push(load(&bakerun::eadd_file(&cache, &v.name, l))?);
+            m.eadd.push(load(&bakerun::eadd_file(&cache, &v.name, l, params))?);
         }
     }
     Ok(m)
