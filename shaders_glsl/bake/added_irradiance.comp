@@ -15,6 +15,7 @@ layout(local_size_x = 64) in;
 
 layout(set = 0, binding = 0) uniform accelerationStructureEXT tlas;
 #include "nee.glsl"
+#include "barycentric.glsl"
 layout(set = 0, binding = 5, scalar) readonly buffer Verts { vec3 verts[]; };
 layout(set = 0, binding = 6) readonly buffer Indices { uint indices[]; };
 // Per view and pixel: the proxy triangle + 1 (0: none), from the views' G-buffers.
@@ -28,17 +29,6 @@ layout(push_constant, scalar) uniform Push {
     uint view; uint width; uint height; uint samples; uint seed; uint pad0; uint pad1; uint pad2;
     Light light;
 } pc;
-
-// Barycentric weights of p (projected onto the triangle's plane), clamped into the triangle.
-vec3 barycentrics(vec3 p, vec3 a, vec3 b, vec3 c) {
-    vec3 e0 = b - a, e1 = c - a, q = p - a;
-    float d00 = dot(e0, e0), d01 = dot(e0, e1), d11 = dot(e1, e1);
-    float d20 = dot(q, e0), d21 = dot(q, e1);
-    float den = max(d00 * d11 - d01 * d01, 1e-20);
-    float v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
-    vec3 l = max(vec3(1.0 - v - w, v, w), vec3(0.0));
-    return l / max(l.x + l.y + l.z, 1e-20);
-}
 
 void main() {
     uint p = gl_GlobalInvocationID.x;

@@ -2,7 +2,9 @@
 // Irradiance composites (§4.3.3): E_src and E_add are averages over the active views that see
 // the surface point (depth test), weighted by the inverse distance between each view's camera
 // and the novel camera; E_add mixes the added lights by their current intensities, and
-// E_rem = α_dim · E_src. Output: 3 planes of vec4 per pixel (E_src, E_add, E_rem).
+// E_rem = α_dim · E_src. Live lights (frame/live.glsl) add their E_add at the point itself.
+// Output: 3 planes of vec4 per pixel (E_src, E_add, E_rem).
+#extension GL_EXT_ray_query : require
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_GOOGLE_include_directive : require
 
@@ -14,12 +16,16 @@ layout(set = 0, binding = 6) readonly buffer Active { uint active_views[]; };
 layout(set = 0, binding = 9) uniform sampler2DArray tex_esrc;
 layout(set = 0, binding = 10) uniform sampler2DArray tex_eadd;
 layout(set = 0, binding = 11) readonly buffer Intensity { float intensity[]; };
+layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
+layout(set = 0, binding = 20, r32ui) readonly uniform uimage2D g_tri;
+#include "live.glsl"
 layout(set = 0, binding = 13) writeonly buffer Out { vec4 irr[]; };
 
 layout(push_constant) uniform Push {
     vec4 eye;
     uint width; uint height; uint nactive; uint view_w; uint view_h;
     uint nviews; uint nlights; float alpha_dim;
+    uint nlive; uint live_mask;
 } pc;
 
 void main() {
@@ -41,13 +47,20 @@ void main() {
         es += w * sample_map(tex_esrc, px, j);
         vec3 add = vec3(0.0);
         for (uint l = 0u; l < pc.nlights; ++l) {
-            if (intensity[l] != 0.0) add += intensity[l] * sample_map(tex_eadd, px, l * pc.nviews + j);
+            if (intensity[l] != 0.0 && !is_live(l, pc.live_mask))
+                add += intensity[l] * sample_map(tex_eadd, px, l * pc.nviews + j);
         }
         ea += w * add;
         sw += w;
     }
     if (sw <= 0.0) return;
+    vec3 live = vec3(0.0);
+    uint tri = imageLoad(g_tri, ivec2(p % pc.width, p / pc.width)).x;
+    for (uint i = 0u; i < pc.nlive && tri > 0u; ++i) {
+        float s = intensity[lives[i].layer];
+        if (s != 0.0) live += s * live_eadd(i, x, n, tri - 1u, p);
+    }
     irr[p] = vec4(es / sw, 1.0);
-    irr[npix + p] = vec4(ea / sw, 1.0);
+    irr[npix + p] = vec4(ea / sw + live, 1.0);
     irr[2u * npix + p] = vec4(pc.alpha_dim * es / sw, 1.0);
 }

@@ -5,6 +5,7 @@
 //   I_i / E_src_i · (E_add_i + E_src_i − E_rem_i),  E_rem_i = α_dim · E_src_i,
 // read at y's pixel in view i (nearest texel, as the depth test). E_src is floored at 1e-4
 // (W/m²) in the ratio. A lit added light met before y is seen in the mirror: its radiance.
+// A live light (frame/live.glsl) adds its E_add evaluated at y itself.
 // Output vec4: rgb, w = reflected distance |y − x| (0: no hit, no view).
 #extension GL_EXT_ray_query : require
 #extension GL_EXT_scalar_block_layout : require
@@ -20,12 +21,14 @@ layout(set = 0, binding = 9) uniform sampler2DArray tex_esrc;
 layout(set = 0, binding = 10) uniform sampler2DArray tex_eadd;
 layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
 layout(set = 0, binding = 13) writeonly buffer Out { vec4 mirror[]; };
+#include "live.glsl"
 
 layout(push_constant) uniform Push {
     vec4 eye;
     uint width; uint height; uint view_w; uint view_h;
     uint nviews; uint nlights; float alpha_dim;
     uint exclude;    // a view left out of the frame (0xFFFFFFFF: none)
+    uint nlive; uint live_mask;
 } pc;
 
 void main() {
@@ -56,7 +59,13 @@ void main() {
     vec3 es = texelFetch(tex_esrc, ivec3(xy, j), 0).rgb;
     vec3 ea = vec3(0.0);
     for (uint l = 0u; l < pc.nlights; ++l) {
-        if (intensity[l] != 0.0) ea += intensity[l] * texelFetch(tex_eadd, ivec3(xy, l * pc.nviews + j), 0).rgb;
+        if (intensity[l] != 0.0 && !is_live(l, pc.live_mask))
+            ea += intensity[l] * texelFetch(tex_eadd, ivec3(xy, l * pc.nviews + j), 0).rgb;
+    }
+    uint tri = uint(rayQueryGetIntersectionPrimitiveIndexEXT(rq, true));
+    for (uint i = 0u; i < pc.nlive; ++i) {
+        float s = intensity[lives[i].layer];
+        if (s != 0.0) ea += s * live_eadd(i, y, live_normal(tri, -r), tri, p);
     }
     vec3 modified = ea + es - pc.alpha_dim * es;
     mirror[p] = vec4(col / max(es, vec3(1e-4)) * modified, distance(y, x));

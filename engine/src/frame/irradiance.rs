@@ -18,6 +18,8 @@ pub struct Push {
     pub nviews: u32,
     pub nlights: u32,
     pub alpha_dim: f32,
+    pub nlive: u32,
+    pub live_mask: u32,
 }
 
 pub const SHADER: &str = "frame/irradiance.comp";
@@ -30,7 +32,7 @@ pub fn reference(r: &RefInputs) -> Vec<[f32; 4]> {
     let (vw, vh) = (r.maps.width, r.maps.height);
     let nviews = r.data.cameras.len();
     for p in 0..npix {
-        let Some((x, _)) = r.surface(p) else { continue };
+        let Some((x, n)) = r.surface(p) else { continue };
         let (mut es, mut ea, mut sw) = (Vec3::ZERO, Vec3::ZERO, 0f32);
         for &j in r.active {
             let j = j as usize;
@@ -42,7 +44,7 @@ pub fn reference(r: &RefInputs) -> Vec<[f32; 4]> {
             es += w * sample_bilinear(&r.maps.esrc[j], vw, vh, px);
             let mut add = Vec3::ZERO;
             for (l, &s) in r.intensities.iter().enumerate() {
-                if s != 0.0 {
+                if s != 0.0 && !r.live.as_ref().is_some_and(|v| v.is_live(l)) {
                     add += s * sample_bilinear(&r.maps.eadd[l * nviews + j], vw, vh, px);
                 }
             }
@@ -50,7 +52,13 @@ pub fn reference(r: &RefInputs) -> Vec<[f32; 4]> {
             sw += w;
         }
         if sw > 0.0 {
-            let (a, b, c) = (es / sw, ea / sw, r.alpha_dim * es / sw);
+            let live = match &r.live {
+                Some(v) if v.gtri[p] > 0 => {
+                    v.eadd(r.intensities, x, n, v.gtri[p] as usize - 1, p as u32)
+                }
+                _ => Vec3::ZERO,
+            };
+            let (a, b, c) = (es / sw, ea / sw + live, r.alpha_dim * es / sw);
             out[p] = [a.x, a.y, a.z, 1.0];
             out[npix + p] = [b.x, b.y, b.z, 1.0];
             out[2 * npix + p] = [c.x, c.y, c.z, 1.0];

@@ -5,6 +5,7 @@
 
 pub mod features;
 pub mod irradiance;
+pub mod live;
 pub mod maps;
 pub mod output;
 pub mod reproject;
@@ -143,6 +144,38 @@ pub struct RefInputs<'a> {
     pub exclude: Option<u32>,
     /// The added lights' shapes (drawn where seen, in the mirror too).
     pub emitters: &'a [GpuLight],
+    /// Live lights, when some are (frame/live.rs).
+    pub live: Option<LiveRef<'a>>,
+}
+
+/// What the CPU references read of the live lights: the bake mesh, the novel view's triangle
+/// ids (+1, 0: none), and per live light its parameters and filtered cache.
+pub struct LiveRef<'a> {
+    pub mesh: &'a crate::scene::Mesh,
+    pub layout: &'a crate::bake::CacheLayout,
+    pub gtri: &'a [u32],
+    pub lights: &'a [live::GpuLive],
+    pub caches: &'a [Vec<[f32; 4]>],
+}
+
+impl LiveRef<'_> {
+    /// Whether added light l is live.
+    pub fn is_live(&self, l: usize) -> bool {
+        self.lights.iter().any(|x| x.layer as usize == l)
+    }
+
+    /// Σ intensity × E_add of the live lights at x (normal n) on triangle `tri`.
+    pub fn eadd(&self, intensities: &[f32], x: Vec3, n: Vec3, tri: usize, key: u32) -> Vec3 {
+        let mut e = Vec3::ZERO;
+        for (i, l) in self.lights.iter().enumerate() {
+            let s = intensities[l.layer as usize];
+            if s != 0.0 {
+                let c = &self.caches[i];
+                e += s * live::reference_eadd(self.mesh, self.layout, l, c, i as u32, x, n, tri, key);
+            }
+        }
+        e
+    }
 }
 
 impl RefInputs<'_> {
@@ -164,6 +197,10 @@ impl RefInputs<'_> {
 /// Everything the frame reads from a baked scene, on the device.
 pub struct FrameScene {
     pub mesh: RayScene,
+    /// The bake mesh on the host, and its albedo when the scene comes from a bake (live lights
+    /// trace it).
+    pub geom: crate::scene::Mesh,
+    pub albedo: Option<Vec<[f32; 4]>>,
     pub data: ViewData,
     pub views: GpuViews,
     pub maps: ViewMaps,
@@ -222,6 +259,8 @@ impl FrameScene {
         }
         Ok(FrameScene {
             mesh: rs,
+            geom: mesh.clone(),
+            albedo: None,
             data,
             views,
             maps,
@@ -254,7 +293,35 @@ impl FrameScene {
             .filter(|l| !l.original)
             .cloned()
             .collect();
-        FrameScene::build(gpu, &mesh, &cams, &host, &added, maps)
+        let mut fs = FrameScene::build(gpu, &mesh, &cams, &host, &added, maps)?;
+        let albedo = bakerun::albedo_file(&bakerun::cache_dir(scene, params)?);
+        fs.albedo = Some(bakerun::read_albedo(&albedo, mesh.positions.len())?);
+        Ok(fs)
+    }
+
+    /// Sets added light `layer`'s shape (a new light when `layer` is the count): it is drawn
+    /// there from the next frame on.
+    pub fn set_emitter(&mut self, layer: usize, light: &Light) -> Result<()> {
+        match layer.cmp(&self.emitters.len()) {
+            std::cmp::Ordering::Less => self.emitters[layer] = GpuLight::new(light),
+            std::cmp::Ordering::Equal => {
+                self.emitters.push(GpuLight::new(light));
+                self.lights.push(light.name.clone());
+            }
+            std::cmp::Ordering::Greater => {
+                return Err(Error::Other(format!(
+                    "added light {layer}: the scene has {}",
+                    self.emitters.len()
+                )))
+            }
+        }
+        self.emitter_buf = Buffer::from_slice(
+            &self.mesh.positions.gpu,
+            "frame emitters",
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            &self.emitters,
+        )?;
+        Ok(())
     }
 }
 
@@ -348,6 +415,8 @@ pub struct Renderer {
     /// An input view left out of every pass (leave-one-out inputs for training on input
     /// views: `relit dump` of an input camera).
     pub exclude: Option<u32>,
+    /// Lights being placed or moved (the viewer).
+    pub live: live::LiveLights,
 }
 
 /// Near and far planes of the novel view's G-buffer (m).
@@ -378,7 +447,9 @@ impl Renderer {
             Storage::F16 => (features::SHADER_F16, output::SHADER_F16),
             Storage::F32 => (features::SHADER_F32, output::SHADER_F32),
         };
+        let live = live::LiveLights::new(gpu, &scene.geom, scene.albedo.as_deref())?;
         Ok(Renderer {
+            live,
             gbuffer: GbufferPass::new(gpu)?,
             reproject: Pipeline::compute(gpu, reproject::SHADER)?,
             irradiance: Pipeline::compute(gpu, irradiance::SHADER)?,
@@ -442,6 +513,26 @@ impl Renderer {
         Ok(self.bufs.as_ref().unwrap())
     }
 
+    /// Places added light `layer` (a new one when `layer` is the count of added lights) at
+    /// `light` and makes it live: drawn there and lit from the next frame, its surface cache
+    /// refined by [`Renderer::refine_live`]. A new light needs one more intensity in the
+    /// `Lighting` passed to `render`.
+    pub fn set_live_light(&mut self, layer: usize, light: &Light) -> Result<()> {
+        let before = self.scene.lights.len();
+        self.live.set(layer, &GpuLight::new(light))?;
+        self.scene.set_emitter(layer, light)?;
+        if self.scene.lights.len() != before {
+            // The intensity buffer holds one float per added light.
+            self.bufs = None;
+        }
+        Ok(())
+    }
+
+    /// One refinement step of the live lights' caches; whether anything changed.
+    pub fn refine_live(&mut self) -> Result<bool> {
+        self.live.refine(&self.scene.mesh)
+    }
+
     /// Renders `cam` under `lighting` and waits; read the results with [`Renderer::buffers_ref`].
     /// With a timer: one span per pass.
     pub fn render(
@@ -493,7 +584,17 @@ impl Renderer {
             (17, Bind::Buffer(&b.hdr)),
             (18, Bind::Buffer(&b.ldr)),
             (19, Bind::Buffer(&s.emitter_buf)),
+            (20, Bind::StorageImage(b.gbuf.tri.view)),
+            (21, Bind::Buffer(&s.mesh.positions)),
+            (22, Bind::Buffer(&s.mesh.indices)),
         ]);
+        let (live_caches, live_corners, live_lights) = self.live.buffers();
+        binds.extend([
+            (23, Bind::Buffer(live_caches)),
+            (24, Bind::Buffer(live_corners)),
+            (25, Bind::Buffer(live_lights)),
+        ]);
+        let (nlive, live_mask) = (self.live.count(), self.live.mask());
         // Binding 13 is each pass's own output (the composites for the passes that read them).
         fn with13<'a>(binds: &[(u32, Bind<'a>)], buf: &'a Buffer) -> Vec<(u32, Bind<'a>)> {
             let mut v = binds.to_vec();
@@ -551,6 +652,8 @@ impl Renderer {
                         nviews: s.views.count,
                         nlights,
                         alpha_dim: lighting.alpha_dim,
+                        nlive,
+                        live_mask,
                     };
                     pass(&self.irradiance, &b.irr, bytes_of(&push))?;
                 });
@@ -565,6 +668,8 @@ impl Renderer {
                         nlights,
                         alpha_dim: lighting.alpha_dim,
                         exclude: self.exclude.unwrap_or(u32::MAX),
+                        nlive,
+                        live_mask,
                     };
                     pass(&self.target_mirror, &b.mirror, bytes_of(&push))?;
                 });

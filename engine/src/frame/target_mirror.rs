@@ -17,6 +17,8 @@ pub struct Push {
     pub nlights: u32,
     pub alpha_dim: f32,
     pub exclude: u32,
+    pub nlive: u32,
+    pub live_mask: u32,
 }
 
 pub const SHADER: &str = "frame/target_mirror.comp";
@@ -58,9 +60,16 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
             let es = v3(r.maps.esrc[j][qp]);
             let mut ea = Vec3::ZERO;
             for (l, &s) in r.intensities.iter().enumerate() {
-                if s != 0.0 {
+                if s != 0.0 && !r.live.as_ref().is_some_and(|v| v.is_live(l)) {
                     ea += s * v3(r.maps.eadd[l * nviews + j][qp]);
                 }
+            }
+            if let Some(v) = &r.live {
+                let mut ny = mesh.face_normal(h.tri as usize);
+                if ny.dot(rd) > 0.0 {
+                    ny = -ny;
+                }
+                ea += v.eadd(r.intensities, y, ny, h.tri as usize, p as u32);
             }
             let m = col / es.max(Vec3::splat(1e-4)) * (ea + es - r.alpha_dim * es);
             [m.x, m.y, m.z, y.distance(x)]

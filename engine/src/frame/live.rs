@@ -1,0 +1,310 @@
+//! Live lights (`shaders_glsl/frame/live.glsl`): added lights being placed or moved in the
+//! viewer. Their E_add is evaluated at the frame's surface points (direct light by next-event
+//! estimation + the light's surface cache), so a light shows where it is at the next frame; the
+//! cache is refined a few paths per texel per call while the light stays put, converging to
+//! what the bake would store. Moving the light again starts its cache over.
+
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use crate::bake::surface_cache::{CacheLayout, GpuCacheLayout, SurfaceCache};
+use crate::bake::{AddedParams, GpuLight};
+use crate::error::{Error, Result};
+use crate::gpu::{vk, Buffer, Gpu, MemoryLocation, RayScene};
+use crate::scene::Mesh;
+
+/// At most this many lights are live at once (each costs shadow rays at every pixel).
+pub const MAX_LIVE: usize = 4;
+
+/// As `LiveLight` in live.glsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuLive {
+    pub light: GpuLight,
+    pub layer: u32,
+    pub samples: u32,
+    pub texels: u32,
+    pub pad: u32,
+}
+
+/// The live lights' parameters: shadow rays per point each frame, paths per texel per
+/// refinement, and the paths per texel at which a cache counts as converged (the final bake's).
+#[derive(Clone, Copy, Debug)]
+pub struct LiveParams {
+    pub samples: u32,
+    pub paths_per_step: u32,
+    pub paths: u32,
+    pub bounces: u32,
+}
+
+impl Default for LiveParams {
+    fn default() -> LiveParams {
+        LiveParams {
+            samples: 8,
+            paths_per_step: 2,
+            paths: 128,
+            bounces: 6,
+        }
+    }
+}
+
+struct Entry {
+    layer: u32,
+    light: GpuLight,
+    /// Sum of the cache estimates so far, and the paths per texel they hold.
+    sum: Vec<[f32; 4]>,
+    paths: u32,
+}
+
+pub struct LiveLights {
+    pub params: LiveParams,
+    gpu: Arc<Gpu>,
+    layout: CacheLayout,
+    glayout: GpuCacheLayout,
+    albedo: Option<Buffer>,
+    tracer: SurfaceCache,
+    entries: Vec<Entry>,
+    /// MAX_LIVE caches (filtered means), the lights, one pass's output.
+    caches: Buffer,
+    lives: Buffer,
+    step: Buffer,
+}
+
+impl LiveLights {
+    /// For the bake mesh `mesh` (the frame's proxy); `albedo` per vertex from the bake, without
+    /// which no light can be live.
+    pub fn new(gpu: &Arc<Gpu>, mesh: &Mesh, albedo: Option<&[[f32; 4]]>) -> Result<LiveLights> {
+        let layout = CacheLayout::new(mesh);
+        let n = layout.texels().max(1) as u64;
+        let buf = |name: &str, size: u64| {
+            Buffer::new(
+                gpu,
+                name,
+                size,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                MemoryLocation::GpuOnly,
+            )
+        };
+        let albedo = match albedo {
+            Some(a) if a.len() == mesh.positions.len() => Some(Buffer::from_slice(
+                gpu,
+                "live albedo",
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                a,
+            )?),
+            Some(a) => {
+                return Err(Error::Other(format!(
+                    "albedo mesh has {} vertices; the bake mesh has {}",
+                    a.len(),
+                    mesh.positions.len()
+                )))
+            }
+            None => None,
+        };
+        let caches = buf("live caches", MAX_LIVE as u64 * n * 16)?;
+        caches.upload(&vec![0u8; (MAX_LIVE as u64 * n * 16) as usize])?;
+        Ok(LiveLights {
+            params: LiveParams::default(),
+            gpu: gpu.clone(),
+            glayout: GpuCacheLayout::upload(gpu, &layout)?,
+            layout,
+            albedo,
+            tracer: SurfaceCache::new(gpu)?,
+            entries: Vec::new(),
+            caches,
+            lives: buf("live lights", (MAX_LIVE * std::mem::size_of::<GpuLive>()) as u64)?,
+            step: buf("live cache step", n * 16)?,
+        })
+    }
+
+    pub fn count(&self) -> u32 {
+        self.entries.len() as u32
+    }
+
+    /// Bit l set: added light l is live (live.glsl's `is_live`).
+    pub fn mask(&self) -> u32 {
+        self.entries.iter().fold(0, |m, e| m | (1 << e.layer))
+    }
+
+    pub fn is_live(&self, layer: usize) -> bool {
+        self.entries.iter().any(|e| e.layer as usize == layer)
+    }
+
+    /// Paths per texel in each live light's cache so far, by layer.
+    pub fn progress(&self) -> Vec<(u32, u32)> {
+        self.entries.iter().map(|e| (e.layer, e.paths)).collect()
+    }
+
+    /// Makes added light `layer` live at `light` (or moves it): its cache starts over.
+    pub fn set(&mut self, layer: usize, light: &GpuLight) -> Result<()> {
+        if self.albedo.is_none() {
+            return Err(Error::Other(
+                "lights can only be moved on a baked scene (its albedo mesh is needed)".into(),
+            ));
+        }
+        if layer >= 32 {
+            return Err(Error::Other(format!(
+                "added light {layer}: only the first 32 added lights can be moved live"
+            )));
+        }
+        let n = self.layout.texels();
+        match self.entries.iter().position(|e| e.layer as usize == layer) {
+            Some(i) => {
+                let e = &mut self.entries[i];
+                e.light = *light;
+                e.sum = vec![[0.0; 4]; n];
+                e.paths = 0;
+            }
+            None if self.entries.len() == MAX_LIVE => {
+                return Err(Error::Other(format!(
+                    "at most {MAX_LIVE} lights can be moved at once: bake the scene's lights \
+                     (save them, then `relit bake`) to move more"
+                )))
+            }
+            None => self.entries.push(Entry {
+                layer: layer as u32,
+                light: *light,
+                sum: vec![[0.0; 4]; n],
+                paths: 0,
+            }),
+        }
+        self.upload()
+    }
+
+    /// One refinement step: `paths_per_step` more paths per texel for every live light whose
+    /// cache is not converged. Returns whether anything changed.
+    pub fn refine(&mut self, mesh: &RayScene) -> Result<bool> {
+        let Some(albedo) = &self.albedo else {
+            return Ok(false);
+        };
+        let p = self.params;
+        let mut changed = false;
+        for e in &mut self.entries {
+            if e.paths >= p.paths {
+                continue;
+            }
+            let ap = AddedParams {
+                samples: p.samples,
+                cache_samples: p.paths_per_step,
+                bounces: p.bounces,
+                // A new seed per step: the steps are independent estimates.
+                seed: 0x5EED_0000 + e.paths,
+            };
+            let gpu = &self.gpu;
+            let texels = self.glayout.texels;
+            let mut res = Ok(());
+            gpu.submit(|cmd| {
+                res = self.tracer.record(
+                    cmd,
+                    mesh,
+                    &self.glayout,
+                    albedo,
+                    &e.light,
+                    ap,
+                    0,
+                    texels,
+                    &self.step,
+                )
+            })?;
+            res?;
+            let step: Vec<[f32; 4]> = self.step.download_vec()?;
+            let w = p.paths_per_step as f32;
+            for (s, v) in e.sum.iter_mut().zip(&step) {
+                for k in 0..3 {
+                    s[k] += w * v[k];
+                }
+            }
+            e.paths += p.paths_per_step;
+            changed = true;
+        }
+        if changed {
+            self.upload()?;
+        }
+        Ok(changed)
+    }
+
+    /// The filtered mean cache of each live light, and the lights, to the device.
+    fn upload(&self) -> Result<()> {
+        let n = self.layout.texels();
+        let mut all = vec![[0f32; 4]; MAX_LIVE * n.max(1)];
+        let mut lives = vec![GpuLive::zeroed(); MAX_LIVE];
+        for (i, e) in self.entries.iter().enumerate() {
+            if e.paths > 0 {
+                let mean: Vec<[f32; 4]> = e
+                    .sum
+                    .iter()
+                    .map(|s| {
+                        let m = Vec3::from_slice(&s[..3]) / e.paths as f32;
+                        m.extend(1.0).into()
+                    })
+                    .collect();
+                all[i * n..(i + 1) * n].copy_from_slice(&self.layout.filter(&mean, 2));
+            }
+            lives[i] = GpuLive {
+                light: e.light,
+                layer: e.layer,
+                samples: self.params.samples,
+                texels: n as u32,
+                pad: 0,
+            };
+        }
+        self.caches.upload(bytemuck::cast_slice(&all))?;
+        self.lives.upload(bytemuck::cast_slice(&lives))
+    }
+
+    /// The current filtered caches, live light by live light (for the CPU references).
+    pub fn caches(&self) -> Result<Vec<Vec<[f32; 4]>>> {
+        let all: Vec<[f32; 4]> = self.caches.download_vec()?;
+        let n = self.layout.texels();
+        Ok((0..self.entries.len())
+            .map(|i| all[i * n..(i + 1) * n].to_vec())
+            .collect())
+    }
+
+    pub fn lights(&self) -> Vec<GpuLive> {
+        self.entries
+            .iter()
+            .map(|e| GpuLive {
+                light: e.light,
+                layer: e.layer,
+                samples: self.params.samples,
+                texels: self.layout.texels() as u32,
+                pad: 0,
+            })
+            .collect()
+    }
+
+    pub fn layout(&self) -> &CacheLayout {
+        &self.layout
+    }
+
+    /// The buffers live.glsl binds (23: caches, 24: corners, 25: lights).
+    pub fn buffers(&self) -> (&Buffer, &Buffer, &Buffer) {
+        (&self.caches, &self.glayout.corners, &self.lives)
+    }
+}
+
+use bytemuck::Zeroable;
+
+/// CPU mirror of `live_eadd`: live light `i` at x (normal n) on triangle `tri`.
+#[allow(clippy::too_many_arguments)]
+pub fn reference_eadd(
+    mesh: &Mesh,
+    layout: &CacheLayout,
+    live: &GpuLive,
+    cache: &[[f32; 4]],
+    i: u32,
+    x: Vec3,
+    n: Vec3,
+    tri: usize,
+    key: u32,
+) -> Vec3 {
+    let dir: Vec3 = (0..live.samples)
+        .map(|s| {
+            live.light
+                .direct(mesh, x, n, crate::bake::random::rand2([key, s, i]), 0.0)
+        })
+        .sum();
+    dir / live.samples.max(1) as f32 + layout.lookup(mesh, cache, tri, x)
+}
