@@ -876,7 +876,11 @@ fn moving_a_light_rebakes_its_entry_alone_and_matches_a_fresh_bake() {
     copy_scene(&d, &fresh);
     assert!(args(fresh.to_str().unwrap()).status.success());
     let f = cache_files(&fresh);
-    assert_eq!(f.len(), after.len() - 9, "the old entry is not in the fresh bake");
+    assert_eq!(
+        f.len(),
+        after.len() - 9,
+        "the old entry is not in the fresh bake"
+    );
     for (name, bytes) in &f {
         let ours = after.iter().find(|a| &a.0 == name).expect(name);
         assert!(&ours.1 == bytes, "{name} differs from a fresh bake");

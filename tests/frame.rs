@@ -506,7 +506,11 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
     let centre = (t.novel.height / 2 * t.novel.width + t.novel.width / 2) as usize;
     let wall = Vec3::from_slice(&g.pos_depth[centre][..3]);
     let n = Vec3::from_slice(&g.normal[centre][..3]);
-    let n = if n.dot(t.novel.center() - wall) < 0.0 { -n } else { n };
+    let n = if n.dot(t.novel.center() - wall) < 0.0 {
+        -n
+    } else {
+        n
+    };
     let moved = Light {
         name: "b".into(),
         shape: LightShape::Disk {
@@ -573,7 +577,10 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
     assert!(bad <= 0.05, "live E_add: {:.1}% differ", bad * 100.0);
     let mirror_ref = target_mirror::reference(&inputs, &r.scene.geom);
     let (bad, worst) = mismatch(&mirror, &mirror_ref, 0.02);
-    eprintln!("live target mirror: {:.2}% over, worst {worst:.4}", bad * 100.0);
+    eprintln!(
+        "live target mirror: {:.2}% over, worst {worst:.4}",
+        bad * 100.0
+    );
     assert!(bad <= 0.05, "live mirror: {:.1}% differ", bad * 100.0);
 
     // Light b moved to the wall in view: E_add there is now far above the baked map's.

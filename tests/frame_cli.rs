@@ -301,3 +301,126 @@ fn view_shows_the_scene_in_a_window_under_xvfb() {
         "window and render differ by up to {worst} code values"
     );
 }
+
+/// Runs `relit view` under Xvfb on `scene` (64×48 from view 0, ratio mode so lighting shows)
+/// with scripted keys, and returns its last frame.
+fn view_frame(scene: &Path, keys: &str, frames: u32, shot: &Path) -> image::RgbImage {
+    let entry = relit_engine::gpu::load_entry().unwrap();
+    let validate = relit_engine::gpu::validation_layer_available(&entry);
+    let out = Command::new("xvfb-run")
+        .args([
+            "-a",
+            "-s",
+            "-screen 0 640x480x24",
+            env!("CARGO_BIN_EXE_relit"),
+        ])
+        .args([
+            "view",
+            scene.to_str().unwrap(),
+            "--res",
+            "64x48",
+            "--camera",
+            "0",
+        ])
+        .args([
+            "--mode",
+            "ratio",
+            "--frames",
+            &frames.to_string(),
+            "--keys",
+            keys,
+        ])
+        .arg("--screenshot")
+        .arg(shot)
+        .env("RELIT_VALIDATE", if validate { "1" } else { "0" })
+        .output()
+        .unwrap();
+    let se = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "relit view --keys {keys} failed:\n{se}"
+    );
+    assert!(!se.contains("[vulkan validation error]"), "{se}");
+    png(shot)
+}
+
+/// Per pixel, how much brighter `a` is than `b` (sum over channels, code values).
+fn brighter(a: &image::RgbImage, b: &image::RgbImage) -> Vec<f32> {
+    a.pixels()
+        .zip(b.pixels())
+        .map(|(p, q)| {
+            (0..3)
+                .map(|k| p.0[k] as f32 - q.0[k] as f32)
+                .sum::<f32>()
+                .max(0.0)
+        })
+        .collect()
+}
+
+/// The x coordinate of the brightening's centre of mass, and its total.
+fn centroid_x(d: &[f32], w: usize) -> (f32, f32) {
+    let total: f32 = d.iter().sum();
+    let x = d
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (i % w) as f32 * v)
+        .sum::<f32>()
+        / total.max(1e-6);
+    (x, total)
+}
+
+/// The viewer adds a lamp where its centre looks (N), moves it (J: 10 cm left per press), and
+/// the frame lights up there and follows it; F5 saves it to scene.json, and `relit render` then
+/// bakes the new light on demand and renders its preset.
+#[test]
+fn view_adds_and_moves_a_light_under_xvfb() {
+    let s = baked_tiny("view-lights");
+    let d = s.parent().unwrap().to_path_buf();
+    let base = view_frame(&s, "", 3, &d.join("base.png"));
+    let lit = view_frame(&s, "1:N", 4, &d.join("lit.png"));
+    let moved = view_frame(&s, "1:N,2:J,2:J,2:J,2:J", 5, &d.join("moved.png"));
+    let w = base.width() as usize;
+    let (x_lit, sum_lit) = centroid_x(&brighter(&lit, &base), w);
+    let (x_moved, sum_moved) = centroid_x(&brighter(&moved, &base), w);
+    eprintln!("brightening: at x {x_lit:.1} (sum {sum_lit:.0}), moved: x {x_moved:.1} (sum {sum_moved:.0})");
+    assert!(
+        sum_lit > 2000.0,
+        "the new lamp must light the frame ({sum_lit})"
+    );
+    assert!(
+        (x_lit - w as f32 / 2.0).abs() < w as f32 / 4.0,
+        "the lamp lights where the centre looked (x {x_lit:.1} of {w})"
+    );
+    assert!(sum_moved > 2000.0);
+    assert!(
+        x_moved < x_lit - 2.0,
+        "moved 40 cm left, its light must move left: {x_lit:.1} → {x_moved:.1}"
+    );
+
+    // Save (F5), then render the saved preset: the lamp is baked on demand.
+    let _ = view_frame(&s, "1:N,2:F5", 4, &d.join("saved.png"));
+    let text = std::fs::read_to_string(s.join("scene.json")).unwrap();
+    assert!(
+        text.contains("lamp") && text.contains("\"viewer\""),
+        "{text}"
+    );
+    let out = d.join("viewer.png");
+    let log = ok(&[
+        "render",
+        s.to_str().unwrap(),
+        "--camera",
+        "0",
+        "--res",
+        "64x48",
+        "--mode",
+        "ratio",
+        "--lighting",
+        "viewer",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(log.contains("baking light(s) lamp"), "{log}");
+    let (x, sum) = centroid_x(&brighter(&png(&out), &base), w);
+    eprintln!("baked lamp: brightening at x {x:.1} (sum {sum:.0})");
+    assert!(sum > 2000.0 && (x - x_lit).abs() < w as f32 / 8.0);
+}

@@ -3,6 +3,7 @@
 mod bench;
 mod render;
 mod view;
+mod view_lights;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -138,6 +139,10 @@ enum Cmd {
         /// Start lighting preset.
         #[arg(long)]
         lighting: Option<String>,
+        /// Scripted key presses "FRAME:KEY,…" (e.g. "2:N,4:J": add a lamp at frame 2, move it
+        /// left at frame 4), for tests and recorded demos.
+        #[arg(long)]
+        keys: Option<String>,
         #[command(flatten)]
         frame: render::FrameArgs,
     },
@@ -577,6 +582,7 @@ fn main() {
             screenshot,
             camera,
             lighting,
+            keys,
             frame,
         } => view::view(
             &opts,
@@ -589,6 +595,7 @@ fn main() {
                 camera: camera.clone(),
                 lighting: lighting.clone(),
                 frame: frame.clone(),
+                keys: keys.clone(),
             },
         ),
         Cmd::Render {

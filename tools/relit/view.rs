@@ -5,6 +5,9 @@
 //! arrow keys to look; 0 original lighting, 1–9 the scene's presets; Tab selects an added light,
 //! +/− change its intensity; [ ] change α_dim; M cycles network (with weights) / ULR / ratio; P saves a screenshot;
 //! F11 toggles fullscreen; Esc quits. The title shows fps and per-pass GPU times.
+//! Lights (`view_lights.rs`): N adds a lamp where the window's centre looks; I/K/J/L move the
+//! selected light forward/back/left/right, U/O down/up; , and . shrink and grow it; C changes
+//! its colour; F5 saves the lights and the lighting (preset "viewer") to scene.json.
 
 use std::collections::HashSet;
 use std::ffi::CStr;
@@ -33,6 +36,8 @@ pub struct ViewArgs {
     pub camera: Option<String>,
     pub lighting: Option<String>,
     pub frame: crate::render::FrameArgs,
+    /// Scripted key presses, "FRAME:KEY,…" (see `view_lights::parse_script`).
+    pub keys: Option<String>,
 }
 
 struct Swap {
@@ -77,6 +82,9 @@ struct App {
     shots: u32,
     fullscreen: bool,
     error: Option<anyhow::Error>,
+    lights: crate::view_lights::LightEditor,
+    /// Scripted key presses (frame index, key), for tests and demos: `--keys`.
+    script: Vec<(u64, KeyCode)>,
 }
 
 fn camera_from(pos: Vec3, yaw: f32, pitch: f32, fov_deg: f32, (w, h): (u32, u32)) -> Camera {
@@ -214,6 +222,22 @@ impl App {
     }
 
     fn key(&mut self, code: KeyCode, el: &ActiveEventLoop) {
+        let cam = self.camera();
+        match self.lights.key(
+            code,
+            &cam,
+            &mut self.scene,
+            &mut self.renderer,
+            &mut self.lighting,
+            &mut self.selected_light,
+        ) {
+            Ok(true) => {
+                self.preset_name = "custom".into();
+                return;
+            }
+            Ok(false) => {}
+            Err(e) => eprintln!("{e:#}"),
+        }
         let lights = added_lights(&self.scene);
         match code {
             KeyCode::Escape => el.exit(),
@@ -300,6 +324,17 @@ impl App {
         let dt = (now - self.last).as_secs_f32().min(0.5);
         self.last = now;
         self.update_camera(dt);
+        let due: Vec<KeyCode> = self
+            .script
+            .iter()
+            .filter(|(f, _)| *f == self.frames_done)
+            .map(|(_, k)| *k)
+            .collect();
+        for k in due {
+            self.key(k, el);
+        }
+        // Live lights: a few more paths per texel of their caches each frame.
+        self.renderer.refine_live()?;
         let cam = self.camera();
         let mut timer = Timer::new(&self.gpu, 64)?;
         self.renderer.render(
@@ -521,8 +556,16 @@ impl App {
         let light = added_lights(&self.scene)
             .get(self.selected_light)
             .map(|n| {
+                let live = self
+                    .renderer
+                    .live
+                    .progress()
+                    .iter()
+                    .find(|(l, _)| *l as usize == self.selected_light)
+                    .map(|(_, p)| format!(" (cache {p}/{} paths)", self.renderer.live.params.paths))
+                    .unwrap_or_default();
                 format!(
-                    " | light {n} {:.1}",
+                    " | light {n} {:.1}{live}",
                     self.lighting.intensities[self.selected_light]
                 )
             })
@@ -618,7 +661,8 @@ impl ApplicationHandler for App {
             WindowEvent::KeyboardInput { event, .. } => {
                 if let PhysicalKey::Code(code) = event.physical_key {
                     if event.state == ElementState::Pressed {
-                        if !event.repeat {
+                        // Moving a light repeats while the key is held.
+                        if !event.repeat || crate::view_lights::REPEATS.contains(&code) {
                             self.key(code, el);
                         }
                         self.held.insert(code);
@@ -686,7 +730,15 @@ pub fn view(opts: &GpuOptions, a: ViewArgs) -> Result<()> {
         gpu.device
             .create_semaphore(&vk::SemaphoreCreateInfo::default(), None)?
     };
+    let script = a
+        .keys
+        .as_deref()
+        .map(crate::view_lights::parse_script)
+        .transpose()?
+        .unwrap_or_default();
     let mut app = App {
+        lights: crate::view_lights::LightEditor::new(&renderer),
+        script,
         renderer,
         mode,
         preset_name: a.lighting.clone().unwrap_or_else(|| "original".into()),

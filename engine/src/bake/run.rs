@@ -280,7 +280,16 @@ pub fn bake_lights(
         ..p.clone()
     };
     added_stage(
-        gpu, &s.mesh, &s.geom, &s.views, &ab, &cache, &lights, scene, &p, progress,
+        gpu,
+        &s.mesh,
+        &s.geom,
+        &s.views,
+        &ab,
+        &cache,
+        &lights,
+        scene,
+        &p,
+        progress,
         &mut report,
     )?;
     if p.compress {

@@ -113,7 +113,10 @@ impl LiveLights {
             tracer: SurfaceCache::new(gpu)?,
             entries: Vec::new(),
             caches,
-            lives: buf("live lights", (MAX_LIVE * std::mem::size_of::<GpuLive>()) as u64)?,
+            lives: buf(
+                "live lights",
+                (MAX_LIVE * std::mem::size_of::<GpuLive>()) as u64,
+            )?,
             step: buf("live cache step", n * 16)?,
         })
     }

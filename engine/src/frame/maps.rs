@@ -151,7 +151,10 @@ impl ViewMaps {
         let lights: Vec<_> = scene.lights.iter().filter(|l| !l.original).collect();
         let mut eadd = Some(Vec::new());
         for l in &lights {
-            match (files(&|v| run::eadd_file(&cache, v, l, params)), eadd.as_mut()) {
+            match (
+                files(&|v| run::eadd_file(&cache, v, l, params)),
+                eadd.as_mut(),
+            ) {
                 (Some(f), Some(all)) => all.extend(f),
                 _ => eadd = None,
             }

@@ -171,7 +171,17 @@ impl LiveRef<'_> {
             let s = intensities[l.layer as usize];
             if s != 0.0 {
                 let c = &self.caches[i];
-                e += s * live::reference_eadd(self.mesh, self.layout, l, c, i as u32, x, n, tri, key);
+                e += s * live::reference_eadd(
+                    self.mesh,
+                    self.layout,
+                    l,
+                    c,
+                    i as u32,
+                    x,
+                    n,
+                    tri,
+                    key,
+                );
             }
         }
         e
@@ -353,7 +363,8 @@ pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
     }
     for l in &lights {
         for v in &scene.views {
-            m.eadd.push(load(&bakerun::eadd_file(&cache, &v.name, l, params))?);
+            m.eadd
+                .push(load(&bakerun::eadd_file(&cache, &v.name, l, params))?);
         }
     }
     Ok(m)

@@ -397,3 +397,24 @@ pub fn write(dir: &Path, scene: &Scene) -> Result<()> {
     let text = serde_json::to_string_pretty(&doc).map_err(|e| Error::Other(e.to_string()))?;
     super::write_atomic(&dir.join(SCENE_FILE), text.as_bytes())
 }
+
+/// Replaces the lights and presets of `dir`'s scene.json and keeps everything else as written
+/// (rewriting the cameras would round their numbers and change the bake's key).
+pub fn write_lights(dir: &Path, lights: &[Light], presets: &[LightingPreset]) -> Result<()> {
+    let path = dir.join(SCENE_FILE);
+    let text = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&text).map_err(|e| Error::input(&path, e.to_string()))?;
+    let Some(obj) = doc.as_object_mut() else {
+        return Err(Error::input(&path, "expected a JSON object"));
+    };
+    let err = |e: serde_json::Error| Error::Other(e.to_string());
+    let lights: Vec<LightDoc> = lights.iter().map(LightDoc::from_light).collect();
+    obj.insert("lights".into(), serde_json::to_value(lights).map_err(err)?);
+    obj.insert(
+        "presets".into(),
+        serde_json::to_value(preset_docs(presets)).map_err(err)?,
+    );
+    let text = serde_json::to_string_pretty(&doc).map_err(|e| Error::Other(e.to_string()))?;
+    super::write_atomic(&path, text.as_bytes())
+}

@@ -22,7 +22,8 @@ pub use camera::{Camera, GpuCamera};
 pub use coverage::{light_coverage, LightCoverage, MIN_VIEWS_PER_LIGHT};
 pub use image::RgbImage;
 pub use json::{
-    CameraDoc, ConditionDoc, MaterialDoc, ObjectDoc, Synthetic, TestViewDoc, SCENE_FILE,
+    write_lights, CameraDoc, ConditionDoc, MaterialDoc, ObjectDoc, Synthetic, TestViewDoc,
+    SCENE_FILE,
 };
 pub use mesh::Mesh;
 
@@ -149,6 +150,58 @@ pub struct Light {
     pub radiance: [f32; 3],
     /// Part of the captured (original) lighting rather than a light the user adds.
     pub original: bool,
+}
+
+impl Light {
+    /// The same light moved by `d`.
+    pub fn translated(&self, d: Vec3) -> Light {
+        let shape = match self.shape {
+            LightShape::Quad {
+                corner,
+                edge_u,
+                edge_v,
+            } => LightShape::Quad {
+                corner: corner + d,
+                edge_u,
+                edge_v,
+            },
+            LightShape::Disk {
+                center,
+                normal,
+                radius,
+            } => LightShape::Disk {
+                center: center + d,
+                normal,
+                radius,
+            },
+        };
+        Light {
+            shape,
+            ..self.clone()
+        }
+    }
+
+    /// The same light scaled about its centre by `f` (its radiance unchanged: a bigger lamp
+    /// gives more light).
+    pub fn scaled(&self, f: f32) -> Light {
+        let c = self.shape.center();
+        let shape = match self.shape {
+            LightShape::Quad { edge_u, edge_v, .. } => LightShape::Quad {
+                corner: c - 0.5 * f * (edge_u + edge_v),
+                edge_u: f * edge_u,
+                edge_v: f * edge_v,
+            },
+            LightShape::Disk { normal, radius, .. } => LightShape::Disk {
+                center: c,
+                normal,
+                radius: f * radius,
+            },
+        };
+        Light {
+            shape,
+            ..self.clone()
+        }
+    }
 }
 
 /// Intensities of the added lights and the dimming of the original lighting, `α_dim` (§4.1.4).
