@@ -254,8 +254,8 @@ fn cache_filter_smooths_along_the_mesh_only() {
         })
         .collect();
     let f = layout.filter(&v, 2);
-    for t in 0..4 {
-        assert!((f[t][0] - 1.0).abs() < 0.5, "floor texel {t}: {}", f[t][0]);
+    for (t, v) in f[..4].iter().enumerate() {
+        assert!((v[0] - 1.0).abs() < 0.5, "floor texel {t}: {}", v[0]);
     }
     assert!(f[4..].iter().all(|x| (x[0] - 5.0).abs() < 1e-5));
     let spread = |x: &[[f32; 4]]| {

@@ -64,6 +64,19 @@ pub enum BenchCmd {
         #[command(flatten)]
         frame: crate::render::FrameArgs,
     },
+    /// Moving a light in the viewer: time from the move to the first frame that shows it, and
+    /// to a converged E_add (the live light's surface cache at the bake's paths per texel), on
+    /// a baked scene from its first view, ratio mode (the first added light moves 30 cm).
+    Light {
+        scene: PathBuf,
+        #[arg(long, default_value = "128x96", value_parser = crate::parse_res)]
+        res: (u32, u32),
+        /// Paths per texel that count as converged (preview bake: 32).
+        #[arg(long, default_value_t = 32)]
+        paths: u32,
+        #[command(flatten)]
+        frame: crate::render::FrameArgs,
+    },
     /// The network alone (§5.1, random weights): ms per inference, GFLOP/s, per-stage times.
     /// `tools/train/bench_torch.py` times the same network with PyTorch on the CPU.
     Net {
@@ -103,6 +116,12 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             quality,
         } => bake_bench(scene, *views, *quality, opts),
         BenchCmd::Bc6h { cache, maps } => bc6h_bench(cache, *maps, opts),
+        BenchCmd::Light {
+            scene,
+            res,
+            paths,
+            frame,
+        } => light_bench(scene, *res, *paths, frame, opts),
         BenchCmd::Frame {
             scene,
             res,
@@ -451,6 +470,102 @@ fn bake_bench(
         "projected full bake: {:.0} s ({} views)",
         total,
         scene.views.len()
+    );
+    Ok(())
+}
+
+fn light_bench(
+    dir: &std::path::Path,
+    res: (u32, u32),
+    paths: u32,
+    fa: &crate::render::FrameArgs,
+    opts: &GpuOptions,
+) -> Result<()> {
+    use relit_engine::frame::{Lighting, Mode};
+    let scene = relit_engine::scene::Scene::load(dir)?;
+    let gpu = crate::open_gpu(opts)?;
+    let mut args = fa.clone();
+    args.mode = Some(crate::render::ModeArg::Ratio);
+    let (mut r, _) = crate::render::open_renderer(&gpu, &scene, &args)?;
+    let added: Vec<&relit_engine::scene::Light> =
+        scene.lights.iter().filter(|l| !l.original).collect();
+    let Some(first) = added.first() else {
+        anyhow::bail!("{}: the scene has no added light to move", dir.display());
+    };
+    let cam = crate::render::rescale(&scene.views[0].camera, res.0, res.1);
+    let mut lighting = Lighting::original(&scene);
+    lighting.intensities[0] = 1.0;
+    r.live.params.paths = paths;
+    // Warm-up: shader compilation, and the live pipelines once.
+    r.render(&cam, &lighting, Mode::Ratio, 1.0, None)?;
+    r.set_live_light(0, first)?;
+    r.refine_live()?;
+    r.render(&cam, &lighting, Mode::Ratio, 1.0, None)?;
+    let t0 = Instant::now();
+    r.render(&cam, &lighting, Mode::Ratio, 1.0, None)?;
+    let frame_s = t0.elapsed().as_secs_f64();
+    // The move: the next frame shows it (direct light exact, the old cache until the new one
+    // has a few paths), then refine + frame until converged.
+    let eadd = |r: &relit_engine::frame::Renderer| -> Result<Vec<f32>> {
+        let n = (res.0 * res.1) as usize;
+        let irr: Vec<[f32; 4]> = r.buffers_ref().unwrap().irr.download_vec()?;
+        Ok(irr[n..2 * n].iter().map(|p| p[0] + p[1] + p[2]).collect())
+    };
+    let moved = first.translated(glam::Vec3::new(0.3, 0.0, 0.0));
+    let t0 = Instant::now();
+    r.set_live_light(0, &moved)?;
+    r.render(&cam, &lighting, Mode::Ratio, 1.0, None)?;
+    let first_s = t0.elapsed().as_secs_f64();
+    let mut shots = vec![(first_s, eadd(&r)?)];
+    let mut t_frames = first_s;
+    loop {
+        let t = Instant::now();
+        if !r.refine_live()? {
+            break;
+        }
+        r.render(&cam, &lighting, Mode::Ratio, 1.0, None)?;
+        t_frames += t.elapsed().as_secs_f64();
+        shots.push((t_frames, eadd(&r)?));
+    }
+    // Median relative difference of each frame's E_add from the converged one.
+    let last = shots.last().unwrap().1.clone();
+    let diff = |e: &[f32]| {
+        let mut d: Vec<f32> = e
+            .iter()
+            .zip(&last)
+            .filter(|(_, l)| **l > 1e-4)
+            .map(|(a, l)| (a - l).abs() / l)
+            .collect();
+        d.sort_by(f32::total_cmp);
+        d.get(d.len() / 2).copied().unwrap_or(0.0)
+    };
+    println!("device: {}", gpu.caps.name);
+    println!(
+        "scene: {} ({} cache texels), {}x{}, ratio mode, light {} moved 30 cm",
+        dir.display(),
+        r.live.layout().texels(),
+        res.0,
+        res.1,
+        first.name
+    );
+    println!("frame with a live light (no refinement): {:.3} s", frame_s);
+    println!(
+        "first frame showing the move: {:.3} s ({} shadow rays/px; the old cache)",
+        first_s, r.live.params.samples
+    );
+    for (t, e) in &shots {
+        println!(
+            "  {:6.2} s: E_add median {:5.1}% from converged",
+            t,
+            100.0 * diff(e)
+        );
+    }
+    let within = shots.iter().find(|(_, e)| diff(e) <= 0.05).map(|x| x.0);
+    println!(
+        "within 5% of converged ({} paths/texel, {} per step): {}",
+        paths,
+        r.live.params.paths_per_step,
+        within.map_or("never".into(), |t| format!("{t:.2} s"))
     );
     Ok(())
 }

@@ -55,7 +55,14 @@ struct Entry {
     /// Sum of the cache estimates so far, and the paths per texel they hold.
     sum: Vec<[f32; 4]>,
     paths: u32,
+    /// The filtered cache on the device. After a move it stays the old place's until the new
+    /// estimate has `SHOW_AFTER` paths: a lamp moved a few centimetres changes its indirect
+    /// light little, so the stale cache looks closer than none (direct light is exact at once).
+    shown: Vec<[f32; 4]>,
 }
+
+/// Paths per texel before a moved light's new cache replaces the old one on screen.
+const SHOW_AFTER: u32 = 4;
 
 pub struct LiveLights {
     pub params: LiveParams,
@@ -170,6 +177,7 @@ impl LiveLights {
                 light: *light,
                 sum: vec![[0.0; 4]; n],
                 paths: 0,
+                shown: vec![[0.0; 4]; n],
             }),
         }
         self.upload()
@@ -219,6 +227,12 @@ impl LiveLights {
                 }
             }
             e.paths += p.paths_per_step;
+            if e.paths >= SHOW_AFTER.min(p.paths) || e.shown.iter().all(|v| v[3] == 0.0) {
+                // Fewer paths, more smoothing: the first estimates are noisy, and a blurred
+                // indirect light is closer to the truth than a grainy one.
+                let rounds = (16 / e.paths).max(2);
+                e.shown = self.layout.filter(&mean(&e.sum, e.paths), rounds);
+            }
             changed = true;
         }
         if changed {
@@ -233,17 +247,7 @@ impl LiveLights {
         let mut all = vec![[0f32; 4]; MAX_LIVE * n.max(1)];
         let mut lives = vec![GpuLive::zeroed(); MAX_LIVE];
         for (i, e) in self.entries.iter().enumerate() {
-            if e.paths > 0 {
-                let mean: Vec<[f32; 4]> = e
-                    .sum
-                    .iter()
-                    .map(|s| {
-                        let m = Vec3::from_slice(&s[..3]) / e.paths as f32;
-                        m.extend(1.0).into()
-                    })
-                    .collect();
-                all[i * n..(i + 1) * n].copy_from_slice(&self.layout.filter(&mean, 2));
-            }
+            all[i * n..(i + 1) * n].copy_from_slice(&e.shown);
             lives[i] = GpuLive {
                 light: e.light,
                 layer: e.layer,
@@ -289,6 +293,17 @@ impl LiveLights {
 }
 
 use bytemuck::Zeroable;
+
+/// The mean of a sum of `paths` estimates (w = 1: an estimate is present).
+fn mean(sum: &[[f32; 4]], paths: u32) -> Vec<[f32; 4]> {
+    sum.iter()
+        .map(|s| {
+            (Vec3::from_slice(&s[..3]) / paths.max(1) as f32)
+                .extend(1.0)
+                .into()
+        })
+        .collect()
+}
 
 /// CPU mirror of `live_eadd`: live light `i` at x (normal n) on triangle `tri`.
 #[allow(clippy::too_many_arguments)]
