@@ -424,3 +424,109 @@ fn view_adds_and_moves_a_light_under_xvfb() {
     eprintln!("baked lamp: brightening at x {x:.1} (sum {sum:.0})");
     assert!(sum > 2000.0 && (x - x_lit).abs() < w as f32 / 8.0);
 }
+
+/// A camera path may move an added light (`moves` in its lighting keyframes): `fly` renders it
+/// where the path has it, close to a render of a scene with the light baked at that place.
+#[test]
+fn fly_moves_a_light_along_the_path() {
+    let s = baked_tiny("fly-moves");
+    let d = s.parent().unwrap().to_path_buf();
+    let sp = s.to_str().unwrap();
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(s.join("scene.json")).unwrap()).unwrap();
+    let cam = &doc["views"][0]["camera"];
+    let (pos, rot) = (cam["position"].clone(), cam["rotation"].clone());
+    let key =
+        |t: f32| serde_json::json!({ "time": t, "position": pos, "rotation": rot, "fov_deg": 70 });
+    let delta = [-0.6, 0.0, 0.3];
+    let path = serde_json::json!({
+        "interpolation": "linear",
+        "keyframes": [key(0.0), key(1.0)],
+        "lighting": [
+            { "time": 0, "dim": 1.0, "intensities": { "lamp": 1.0 } },
+            { "time": 1, "dim": 1.0, "intensities": { "lamp": 1.0 }, "moves": { "lamp": delta } }
+        ]
+    });
+    let pp = d.join("moves.json");
+    std::fs::write(&pp, path.to_string()).unwrap();
+    let frames = d.join("frames");
+    ok(&[
+        "fly",
+        sp,
+        "--path",
+        pp.to_str().unwrap(),
+        "--out",
+        frames.to_str().unwrap(),
+        "--res",
+        "64x48",
+        "--fps",
+        "2",
+        "--mode",
+        "ratio",
+    ]);
+    let (f0, f2) = (
+        png(&frames.join("frame00000.png")),
+        png(&frames.join("frame00002.png")),
+    );
+
+    // The same light baked at the moved place (scene.json edited; render bakes it on demand).
+    let mut doc = doc.clone();
+    for l in doc["lights"].as_array_mut().unwrap() {
+        if l["name"] == "lamp" {
+            for k in 0..3 {
+                let v = l["center"][k].as_f64().unwrap();
+                l["center"][k] = serde_json::json!(v + delta[k]);
+            }
+        }
+    }
+    std::fs::write(
+        s.join("scene.json"),
+        serde_json::to_vec_pretty(&doc).unwrap(),
+    )
+    .unwrap();
+    let preset_path = d.join("still.json");
+    std::fs::write(
+        &preset_path,
+        serde_json::json!({
+            "interpolation": "linear",
+            "keyframes": [key(0.0), key(1.0)],
+            "lighting": [{ "time": 0, "dim": 1.0, "intensities": { "lamp": 1.0 } }]
+        })
+        .to_string(),
+    )
+    .unwrap();
+    let still = d.join("still");
+    let log = ok(&[
+        "fly",
+        sp,
+        "--path",
+        preset_path.to_str().unwrap(),
+        "--out",
+        still.to_str().unwrap(),
+        "--res",
+        "64x48",
+        "--fps",
+        "1",
+        "--mode",
+        "ratio",
+    ]);
+    assert!(log.contains("baking light(s) lamp"), "{log}");
+    let baked = png(&still.join("frame00000.png"));
+    let diff = |a: &image::RgbImage, b: &image::RgbImage| -> f64 {
+        a.pixels()
+            .zip(b.pixels())
+            .flat_map(|(p, q)| (0..3).map(move |k| (p.0[k] as f64 - q.0[k] as f64).abs()))
+            .sum::<f64>()
+            / (a.width() * a.height() * 3) as f64
+    };
+    let (moved_vs_start, moved_vs_baked) = (diff(&f2, &f0), diff(&f2, &baked));
+    eprintln!("mean |Δ| code values: moved vs start {moved_vs_start:.2}, moved vs baked there {moved_vs_baked:.2}");
+    assert!(
+        moved_vs_start > 2.0,
+        "moving the light must change the frame"
+    );
+    assert!(
+        moved_vs_baked < 0.35 * moved_vs_start,
+        "the moved light must look like the light baked there"
+    );
+}

@@ -284,6 +284,15 @@ pub fn fly(
     );
     bar.set_prefix("fly");
     let base = Lighting::original(&scene);
+    // Lights the path moves: their caches at each lighting keyframe's place, traced once.
+    let params = find_bake(&scene, a.quality)?;
+    let moves = relit_engine::frame::live::PathMoves::new(
+        &gpu,
+        &scene,
+        &params,
+        &cp,
+        &mut |_: &str, _, _, _| {},
+    )?;
     let t_start = std::time::Instant::now();
     for i in 0..n {
         let t = t0 + i as f32 / fps;
@@ -292,6 +301,7 @@ pub fn fly(
             Some(l) => Lighting::from_path(&scene, &l, path)?,
             None => base.clone(),
         };
+        moves.apply(&mut r, &cp, t)?;
         r.render(&cam, &light, mode, a.exposure, None)?;
         match &mut ffmpeg {
             Some(child) => {

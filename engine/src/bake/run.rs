@@ -592,6 +592,78 @@ pub fn bake(
 /// Rounds of the surface cache's filter along the mesh (off with the denoiser).
 const CACHE_FILTER_ROUNDS: u32 = 2;
 
+/// Traces and filters one light's surface cache.
+#[allow(clippy::too_many_arguments)]
+fn trace_cache(
+    sc: &SurfaceCache,
+    mesh: &RayScene,
+    glayout: &GpuCacheLayout,
+    layout: &CacheLayout,
+    albedo: &Buffer,
+    light: &GpuLight,
+    p: &BakeParams,
+    progress: &mut dyn FnMut(u32, u32),
+) -> Result<Vec<[f32; 4]>> {
+    let raw = sc.run(mesh, glayout, albedo, light, p.added(), progress)?;
+    let rounds = if p.denoise.radius > 0 {
+        CACHE_FILTER_ROUNDS
+    } else {
+        0
+    };
+    Ok(layout.filter(&raw, rounds))
+}
+
+/// The surface caches of `lights` (the scene's added lights, possibly moved) in the bake for
+/// `p`, traced where their entry has none yet: what `fly` blends for a light a path moves.
+pub fn light_caches(
+    gpu: &Arc<Gpu>,
+    scene: &Scene,
+    p: &BakeParams,
+    lights: &[Light],
+    progress: &mut dyn Progress,
+) -> Result<Vec<Vec<[f32; 4]>>> {
+    let cache = cache_dir(scene, p)?;
+    let geom = bake_mesh(scene, p);
+    let layout = CacheLayout::new(&geom);
+    let missing = lights
+        .iter()
+        .filter(|l| !cache_file(&cache, l, p).exists())
+        .count();
+    if missing > 0 {
+        let mesh = RayScene::new(gpu, &geom.positions, &geom.triangles)?;
+        let albedo = read_albedo(&albedo_file(&cache), geom.positions.len())?;
+        let ab = Buffer::from_slice(gpu, "albedo", vk::BufferUsageFlags::STORAGE_BUFFER, &albedo)?;
+        let glayout = GpuCacheLayout::upload(gpu, &layout)?;
+        let sc = SurfaceCache::new(gpu)?;
+        let mut k = 0;
+        for l in lights {
+            let cf = cache_file(&cache, l, p);
+            if cf.exists() {
+                continue;
+            }
+            k += 1;
+            let stage = format!("surface cache {k}/{missing}");
+            let v = trace_cache(
+                &sc,
+                &mesh,
+                &glayout,
+                &layout,
+                &ab,
+                &GpuLight::new(l),
+                p,
+                &mut |d, n| progress.update(&stage, d as usize, n as usize, 0),
+            )?;
+            let dir = light_dir(&cache, l, p);
+            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+            super::surface_cache::write(&cf, &v)?;
+        }
+    }
+    lights
+        .iter()
+        .map(|l| super::surface_cache::read(&cache_file(&cache, l, p), layout.texels()))
+        .collect()
+}
+
 /// Bakes the lights' entries that are missing: the surface cache (traced once per light, kept
 /// as `light-<key>/surface_cache.bin`) and the E_add map of every view in the slice.
 #[allow(clippy::too_many_arguments)]
@@ -633,15 +705,9 @@ fn added_stage(
         } else {
             let t = Instant::now();
             let stage = format!("surface cache {}/{}", li + 1, lights.len());
-            let raw = sc.run(mesh, &glayout, albedo, &gl, ap, &mut |d, n| {
+            let v = trace_cache(&sc, mesh, &glayout, &layout, albedo, &gl, p, &mut |d, n| {
                 progress.update(&stage, d as usize, n as usize, 0)
             })?;
-            let rounds = if p.denoise.radius > 0 {
-                CACHE_FILTER_ROUNDS
-            } else {
-                0
-            };
-            let v = layout.filter(&raw, rounds);
             super::surface_cache::write(&cf, &v)?;
             cache_s += t.elapsed().as_secs_f64();
             cache_rays += super::surface_cache::max_rays(layout.texels(), ap);

@@ -183,6 +183,42 @@ impl LiveLights {
         self.upload()
     }
 
+    /// Makes added light `layer` live at `light` with a finished cache (no refinement).
+    pub fn set_converged(
+        &mut self,
+        layer: usize,
+        light: &GpuLight,
+        cache: Vec<[f32; 4]>,
+    ) -> Result<()> {
+        self.set(layer, light)?;
+        let paths = self.params.paths;
+        let e = self
+            .entries
+            .iter_mut()
+            .find(|e| e.layer as usize == layer)
+            .expect("just set");
+        e.sum = cache
+            .iter()
+            .map(|v| {
+                [
+                    v[0] * paths as f32,
+                    v[1] * paths as f32,
+                    v[2] * paths as f32,
+                    0.0,
+                ]
+            })
+            .collect();
+        e.paths = paths;
+        e.shown = cache;
+        self.upload()
+    }
+
+    /// Added light `layer` is no longer live (its baked maps are read again).
+    pub fn unset(&mut self, layer: usize) -> Result<()> {
+        self.entries.retain(|e| e.layer as usize != layer);
+        self.upload()
+    }
+
     /// One refinement step: `paths_per_step` more paths per texel for every live light whose
     /// cache is not converged. Returns whether anything changed.
     pub fn refine(&mut self, mesh: &RayScene) -> Result<bool> {
@@ -325,4 +361,76 @@ pub fn reference_eadd(
         })
         .sum();
     dir / live.samples.max(1) as f32 + layout.lookup(mesh, cache, tri, x)
+}
+
+/// The lights a camera path moves (`moves` in its lighting keyframes): their surface caches at
+/// each keyframe's place, traced once (kept in the bake's light entries); at any time the
+/// light is live at its interpolated place, with exact direct light and the two neighbouring
+/// keyframes' caches blended by the same weight (indirect light varies slowly with the place).
+pub struct PathMoves {
+    /// Per moved light: its layer, its place in the scene, its cache at each keyframe.
+    lights: Vec<(usize, crate::scene::Light, Vec<Vec<[f32; 4]>>)>,
+}
+
+impl PathMoves {
+    pub fn new(
+        gpu: &Arc<Gpu>,
+        scene: &crate::scene::Scene,
+        params: &crate::bake::BakeParams,
+        path: &crate::scene::path::CameraPath,
+        progress: &mut dyn crate::bake::Progress,
+    ) -> Result<PathMoves> {
+        let added: Vec<&crate::scene::Light> =
+            scene.lights.iter().filter(|l| !l.original).collect();
+        let mut lights = Vec::new();
+        for name in path.moved_lights() {
+            let Some(layer) = added.iter().position(|l| l.name == name) else {
+                return Err(Error::Other(format!(
+                    "the path moves \"{name}\", which is not an added light of the scene"
+                )));
+            };
+            let base = added[layer].clone();
+            let placed: Vec<crate::scene::Light> = path
+                .moves_at_keys(&name)
+                .iter()
+                .map(|d| base.translated(*d))
+                .collect();
+            let caches = crate::bake::run::light_caches(gpu, scene, params, &placed, progress)?;
+            lights.push((layer, base, caches));
+        }
+        Ok(PathMoves { lights })
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.lights.is_empty()
+    }
+
+    /// Places the moved lights as the path has them at time t.
+    pub fn apply(
+        &self,
+        r: &mut super::Renderer,
+        path: &crate::scene::path::CameraPath,
+        t: f32,
+    ) -> Result<()> {
+        let (Some((i, j, u)), Some(l)) = (path.lighting_segment(t), path.lighting_at(t)) else {
+            return Ok(());
+        };
+        for (layer, base, caches) in &self.lights {
+            let d = l.moves.get(&base.name).copied().unwrap_or(Vec3::ZERO);
+            if d == Vec3::ZERO {
+                r.unset_live_light(*layer, base)?;
+                continue;
+            }
+            let blend: Vec<[f32; 4]> = caches[i]
+                .iter()
+                .zip(&caches[j])
+                .map(|(a, b)| {
+                    let m = Vec3::from_slice(&a[..3]) * (1.0 - u) + Vec3::from_slice(&b[..3]) * u;
+                    m.extend(1.0).into()
+                })
+                .collect();
+            r.set_live_light_cached(*layer, &base.translated(d), blend)?;
+        }
+        Ok(())
+    }
 }

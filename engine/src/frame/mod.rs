@@ -81,7 +81,12 @@ impl Lighting {
         file: &Path,
     ) -> Result<Lighting> {
         let names = added_lights(scene);
-        if let Some(n) = l.intensities.keys().find(|n| !names.contains(n)) {
+        if let Some(n) = l
+            .intensities
+            .keys()
+            .chain(l.moves.keys())
+            .find(|n| !names.contains(n))
+        {
             return Err(Error::input(
                 file,
                 format!(
@@ -535,6 +540,27 @@ impl Renderer {
         if self.scene.lights.len() != before {
             // The intensity buffer holds one float per added light.
             self.bufs = None;
+        }
+        Ok(())
+    }
+
+    /// As [`Renderer::set_live_light`] with a finished surface cache (no refinement).
+    pub fn set_live_light_cached(
+        &mut self,
+        layer: usize,
+        light: &Light,
+        cache: Vec<[f32; 4]>,
+    ) -> Result<()> {
+        self.live
+            .set_converged(layer, &GpuLight::new(light), cache)?;
+        self.scene.set_emitter(layer, light)
+    }
+
+    /// Added light `layer` reads its baked maps again, drawn at `light` (its baked place).
+    pub fn unset_live_light(&mut self, layer: usize, light: &Light) -> Result<()> {
+        if self.live.is_live(layer) {
+            self.live.unset(layer)?;
+            self.scene.set_emitter(layer, light)?;
         }
         Ok(())
     }

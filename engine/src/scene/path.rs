@@ -6,11 +6,14 @@
 //!   "keyframes": [ { "time": 0.0, "position": [x, y, z], "look_at": [x, y, z], "fov_deg": 70 },
 //!                  { "time": 2.0, "position": [...], "rotation": [[right], [down], [forward]],
 //!                    "fov_deg": 60 } ],
-//!   "lighting": [ { "time": 0.0, "dim": 0.0, "intensities": { "lamp": 1.0 } } ] }
+//!   "lighting": [ { "time": 0.0, "dim": 0.0, "intensities": { "lamp": 1.0 },
+//!                   "moves": { "lamp": [dx, dy, dz] } } ] }
 //! ```
 //! Positions and look-at points follow a uniform Catmull-Rom spline through the
 //! keyframes (ends clamped), or straight lines; rotations are slerped; the field of view
 //! (horizontal, degrees) and the lighting are interpolated linearly. Missing intensities are 0.
+//! `moves` displaces an added light from its place in the scene (metres, world axes), also
+//! interpolated linearly; a light a keyframe does not move stays where the scene has it.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -55,6 +58,17 @@ struct LightKeyDoc {
     dim: f32,
     #[serde(default)]
     intensities: BTreeMap<String, f32>,
+    #[serde(default)]
+    moves: BTreeMap<String, [f32; 3]>,
+}
+
+/// One lighting keyframe: time, α_dim, intensities, light displacements.
+#[derive(Clone, Debug)]
+struct LightKey {
+    time: f32,
+    dim: f32,
+    intensities: BTreeMap<String, f32>,
+    moves: BTreeMap<String, Vec3>,
 }
 
 #[derive(Clone, Debug)]
@@ -70,15 +84,17 @@ struct Key {
 #[derive(Clone, Debug)]
 pub struct CameraPath {
     keys: Vec<Key>,
-    lights: Vec<(f32, f32, BTreeMap<String, f32>)>,
+    lights: Vec<LightKey>,
     catmull_rom: bool,
 }
 
-/// The lighting at one time: α_dim and the intensity of each named added light.
+/// The lighting at one time: α_dim, the intensity of each named added light, and how far each
+/// moved light is from its place in the scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PathLighting {
     pub dim: f32,
     pub intensities: BTreeMap<String, f32>,
+    pub moves: BTreeMap<String, Vec3>,
 }
 
 fn catmull_rom(p0: Vec3, p1: Vec3, p2: Vec3, p3: Vec3, u: f32) -> Vec3 {
@@ -162,7 +178,23 @@ impl CameraPath {
             if !(0.0..=1.0).contains(&l.dim) {
                 return Err(bad(format!("lighting[{i}]: dim must be in [0, 1]")));
             }
-            lights.push((l.time, l.dim, l.intensities.clone()));
+            for (name, d) in &l.moves {
+                if !Vec3::from(*d).is_finite() {
+                    return Err(bad(format!(
+                        "lighting[{i}]: moves.{name} must be finite (metres)"
+                    )));
+                }
+            }
+            lights.push(LightKey {
+                time: l.time,
+                dim: l.dim,
+                intensities: l.intensities.clone(),
+                moves: l
+                    .moves
+                    .iter()
+                    .map(|(k, v)| (k.clone(), Vec3::from(*v)))
+                    .collect(),
+            });
         }
         Ok(CameraPath {
             keys,
@@ -174,7 +206,7 @@ impl CameraPath {
     /// Time of the last keyframe (camera or lighting).
     pub fn duration(&self) -> f32 {
         let k = self.keys.last().unwrap().time;
-        self.lights.last().map_or(k, |l| l.0.max(k))
+        self.lights.last().map_or(k, |l| l.time.max(k))
     }
 
     pub fn start(&self) -> f32 {
@@ -236,19 +268,54 @@ impl CameraPath {
         if self.lights.is_empty() {
             return None;
         }
-        let times: Vec<f32> = self.lights.iter().map(|l| l.0).collect();
-        let (i, u) = CameraPath::segment(&times, t);
-        let j = (i + 1).min(self.lights.len() - 1);
+        let (i, j, u) = self.lighting_segment(t)?;
         let (a, b) = (&self.lights[i], &self.lights[j]);
         let mut intensities = BTreeMap::new();
-        for name in a.2.keys().chain(b.2.keys()) {
-            let x = a.2.get(name).copied().unwrap_or(0.0);
-            let y = b.2.get(name).copied().unwrap_or(0.0);
+        for name in a.intensities.keys().chain(b.intensities.keys()) {
+            let x = a.intensities.get(name).copied().unwrap_or(0.0);
+            let y = b.intensities.get(name).copied().unwrap_or(0.0);
             intensities.insert(name.clone(), x + (y - x) * u);
         }
+        let mut moves = BTreeMap::new();
+        for name in a.moves.keys().chain(b.moves.keys()) {
+            let x = a.moves.get(name).copied().unwrap_or(Vec3::ZERO);
+            let y = b.moves.get(name).copied().unwrap_or(Vec3::ZERO);
+            moves.insert(name.clone(), x + (y - x) * u);
+        }
         Some(PathLighting {
-            dim: a.1 + (b.1 - a.1) * u,
+            dim: a.dim + (b.dim - a.dim) * u,
             intensities,
+            moves,
         })
+    }
+
+    /// The lighting keyframes around time t and the weight of the second: (i, j, u).
+    pub fn lighting_segment(&self, t: f32) -> Option<(usize, usize, f32)> {
+        if self.lights.is_empty() {
+            return None;
+        }
+        let times: Vec<f32> = self.lights.iter().map(|l| l.time).collect();
+        let (i, u) = CameraPath::segment(&times, t);
+        Some((i, (i + 1).min(self.lights.len() - 1), u))
+    }
+
+    /// Each lighting keyframe's displacement of `light` (zero where it does not move it).
+    pub fn moves_at_keys(&self, light: &str) -> Vec<Vec3> {
+        self.lights
+            .iter()
+            .map(|k| k.moves.get(light).copied().unwrap_or(Vec3::ZERO))
+            .collect()
+    }
+
+    /// The names of the lights some keyframe moves.
+    pub fn moved_lights(&self) -> Vec<String> {
+        let mut v: Vec<String> = self
+            .lights
+            .iter()
+            .flat_map(|k| k.moves.keys().cloned())
+            .collect();
+        v.sort();
+        v.dedup();
+        v
     }
 }
