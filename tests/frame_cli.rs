@@ -244,34 +244,11 @@ fn view_shows_the_scene_in_a_window_under_xvfb() {
     let sp = s.to_str().unwrap();
     let d = s.parent().unwrap();
     let (shot, want) = (d.join("shot.png"), d.join("render.png"));
-    let entry = relit_engine::gpu::load_entry().unwrap();
-    let validate = relit_engine::gpu::validation_layer_available(&entry);
-    let out = Command::new("xvfb-run")
-        .args([
-            "-a",
-            "-s",
-            "-screen 0 640x480x24",
-            env!("CARGO_BIN_EXE_relit"),
-        ])
-        .args([
-            "view",
-            sp,
-            "--res",
-            "64x48",
-            "--camera",
-            "0",
-            "--frames",
-            "3",
-            "--screenshot",
-        ])
-        .arg(&shot)
-        .env("RELIT_VALIDATE", if validate { "1" } else { "0" })
-        .output()
-        .unwrap();
-    let se = String::from_utf8_lossy(&out.stderr);
-    let so = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "relit view failed:\n{so}\n{se}");
-    assert!(!se.contains("[vulkan validation error]"), "{se}");
+    let (a, so) = run_view(
+        &s,
+        &["--res", "64x48", "--camera", "0", "--frames", "3"],
+        &shot,
+    );
     assert!(so.contains("read back from the window"), "{so}");
     ok(&[
         "render",
@@ -283,7 +260,7 @@ fn view_shows_the_scene_in_a_window_under_xvfb() {
         "--out",
         want.to_str().unwrap(),
     ]);
-    let (a, b) = (png(&shot), png(&want));
+    let b = png(&want);
     assert_eq!(a.dimensions(), (64, 48));
     let lit = a.pixels().filter(|p| p.0.iter().any(|&c| c > 8)).count();
     assert!(
@@ -302,9 +279,9 @@ fn view_shows_the_scene_in_a_window_under_xvfb() {
     );
 }
 
-/// Runs `relit view` under Xvfb on `scene` (64×48 from view 0, ratio mode so lighting shows)
-/// with scripted keys, and returns its last frame.
-fn view_frame(scene: &Path, keys: &str, frames: u32, shot: &Path) -> image::RgbImage {
+/// Runs `relit view SCENE ARGS --screenshot SHOT` under Xvfb (validation on when installed);
+/// returns the last frame and stdout.
+fn run_view(scene: &Path, args: &[&str], shot: &Path) -> (image::RgbImage, String) {
     let entry = relit_engine::gpu::load_entry().unwrap();
     let validate = relit_engine::gpu::validation_layer_available(&entry);
     let out = Command::new("xvfb-run")
@@ -314,34 +291,30 @@ fn view_frame(scene: &Path, keys: &str, frames: u32, shot: &Path) -> image::RgbI
             "-screen 0 640x480x24",
             env!("CARGO_BIN_EXE_relit"),
         ])
-        .args([
-            "view",
-            scene.to_str().unwrap(),
-            "--res",
-            "64x48",
-            "--camera",
-            "0",
-        ])
-        .args([
-            "--mode",
-            "ratio",
-            "--frames",
-            &frames.to_string(),
-            "--keys",
-            keys,
-        ])
+        .args(["view", scene.to_str().unwrap()])
+        .args(args)
         .arg("--screenshot")
         .arg(shot)
         .env("RELIT_VALIDATE", if validate { "1" } else { "0" })
         .output()
         .unwrap();
     let se = String::from_utf8_lossy(&out.stderr);
+    let so = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(
         out.status.success(),
-        "relit view --keys {keys} failed:\n{se}"
+        "relit view {args:?} failed:\n{so}\n{se}"
     );
     assert!(!se.contains("[vulkan validation error]"), "{se}");
-    png(shot)
+    (png(shot), so)
+}
+
+/// `relit view` with scripted keys, 64×48 from view 0, ratio mode (so lighting shows).
+fn view_frame(scene: &Path, keys: &str, frames: u32, shot: &Path) -> image::RgbImage {
+    let frames = frames.to_string();
+    let args = [
+        "--res", "64x48", "--camera", "0", "--mode", "ratio", "--frames", &frames,
+    ];
+    run_view(scene, &[&args[..], &["--keys", keys]].concat(), shot).0
 }
 
 /// Per pixel, how much brighter `a` is than `b` (sum over channels, code values).

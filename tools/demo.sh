@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # The main job on the bundled scene: sets the machine up (tools/setup.sh), reports the device,
-# checks and bakes scenes/demo_room (preview quality, ~14 min on 2 cores; a second run finds
+# checks and bakes scenes/demo_room (preview quality, ~5 min on 2 cores; a second run finds
 # everything cached), renders one novel view and records a walk through the room (paths/walk.json:
-# the TV and the window's reflection on the floor, the table, the bed, the shelf; a lamp by the TV
-# switches on, the original light dims to 30%, the light passes to a lamp mid-room and one by the
-# bed, and the original light returns) to out/demo_room_fly.mp4 (and, relit without a network,
+# the TV and the window's reflection on the floor, the table, the bed, the shelf; the lamp by the
+# TV switches on, the original light dims to 30%, the lamp moves mid-room and on towards the bed,
+# and the original light returns) to out/demo_room_fly.mp4 (and, relit without a network,
 # out/demo_room_fly_ratio.mp4).
 #
 # With trained weights at tools/train/weights/relit.safetensors the frames come from the

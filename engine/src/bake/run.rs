@@ -378,27 +378,13 @@ pub fn albedo_file(cache: &Path) -> PathBuf {
     cache.join("albedo_mesh.bin")
 }
 
-/// Per-vertex albedo (rgb, weight) as little-endian f32 after a "RALB" + count header.
+/// Per-vertex albedo (rgb, weight), tagged "RALB".
 fn write_albedo(path: &Path, a: &[[f32; 4]]) -> Result<()> {
-    let mut out = b"RALB".to_vec();
-    out.extend_from_slice(&(a.len() as u32).to_le_bytes());
-    out.extend_from_slice(bytemuck::cast_slice(a));
-    write_atomic(path, &out)
+    super::storage::write_vec4s(path, b"RALB", a)
 }
 
 pub fn read_albedo(path: &Path, expected: usize) -> Result<Vec<[f32; 4]>> {
-    let b = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    if b.len() < 8 || &b[..4] != b"RALB" {
-        return Err(Error::input(path, "not an albedo-mesh cache file"));
-    }
-    let n = u32::from_le_bytes(b[4..8].try_into().unwrap()) as usize;
-    if n != expected || b.len() != 8 + 16 * n {
-        return Err(Error::input(
-            path,
-            format!("holds {n} vertices; the mesh has {expected}"),
-        ));
-    }
-    Ok(bytemuck::pod_collect_to_vec(&b[8..]))
+    super::storage::read_vec4s(path, b"RALB", expected, "albedo-mesh cache", "vertices")
 }
 
 /// Bakes `scene` (or the slice `p.views`) into its cache.

@@ -219,3 +219,35 @@ impl Fetch {
             .collect())
     }
 }
+
+/// A per-vertex or per-texel table on disk: a 4-byte tag, the count (u32), then one vec4 per
+/// entry, little-endian f32 (the albedo mesh "RALB", a surface cache "RCAC").
+pub fn write_vec4s(path: &std::path::Path, tag: &[u8; 4], v: &[[f32; 4]]) -> Result<()> {
+    let mut out = tag.to_vec();
+    out.extend_from_slice(&(v.len() as u32).to_le_bytes());
+    out.extend_from_slice(bytemuck::cast_slice(v));
+    crate::scene::write_atomic(path, &out)
+}
+
+/// Reads a table written by [`write_vec4s`]: it must carry `tag` (else "not a `what` file")
+/// and hold `expected` entries of `unit` (else an error naming both counts).
+pub fn read_vec4s(
+    path: &std::path::Path,
+    tag: &[u8; 4],
+    expected: usize,
+    what: &str,
+    unit: &str,
+) -> Result<Vec<[f32; 4]>> {
+    let b = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if b.len() < 8 || &b[..4] != tag {
+        return Err(Error::input(path, format!("not a {what} file")));
+    }
+    let n = u32::from_le_bytes(b[4..8].try_into().unwrap()) as usize;
+    if n != expected || b.len() != 8 + 16 * n {
+        return Err(Error::input(
+            path,
+            format!("holds {n} {unit}; the bake mesh has {expected}"),
+        ));
+    }
+    Ok(bytemuck::pod_collect_to_vec(&b[8..]))
+}

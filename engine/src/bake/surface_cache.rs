@@ -11,9 +11,9 @@ use glam::Vec3;
 
 use super::added_irradiance::{AddedParams, GpuLight, RR_START};
 use super::random::{cosine_dir, rand2};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
-use crate::scene::{write_atomic, Mesh};
+use crate::scene::Mesh;
 
 /// Faces meeting at a vertex at more than this angle (cos 45°) get texels of their own: a room's
 /// corner holds a wall's irradiance and the floor's, which differ.
@@ -306,25 +306,11 @@ pub fn reference(
         .collect()
 }
 
-/// A cache on disk: "RCAC", the texel count, then vec4 per texel (little-endian f32).
+/// A cache on disk: vec4 per texel, tagged "RCAC".
 pub fn write(path: &Path, values: &[[f32; 4]]) -> Result<()> {
-    let mut out = b"RCAC".to_vec();
-    out.extend_from_slice(&(values.len() as u32).to_le_bytes());
-    out.extend_from_slice(bytemuck::cast_slice(values));
-    write_atomic(path, &out)
+    super::storage::write_vec4s(path, b"RCAC", values)
 }
 
 pub fn read(path: &Path, texels: usize) -> Result<Vec<[f32; 4]>> {
-    let b = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    if b.len() < 8 || &b[..4] != b"RCAC" {
-        return Err(Error::input(path, "not a surface-cache file"));
-    }
-    let n = u32::from_le_bytes(b[4..8].try_into().unwrap()) as usize;
-    if n != texels || b.len() != 8 + 16 * n {
-        return Err(Error::input(
-            path,
-            format!("holds {n} texels; the bake mesh has {texels}"),
-        ));
-    }
-    Ok(bytemuck::pod_collect_to_vec(&b[8..]))
+    super::storage::read_vec4s(path, b"RCAC", texels, "surface-cache", "texels")
 }

@@ -368,8 +368,14 @@ pub fn reference_eadd(
 /// light is live at its interpolated place, with exact direct light and the two neighbouring
 /// keyframes' caches blended by the same weight (indirect light varies slowly with the place).
 pub struct PathMoves {
-    /// Per moved light: its layer, its place in the scene, its cache at each keyframe.
-    lights: Vec<(usize, crate::scene::Light, Vec<Vec<[f32; 4]>>)>,
+    lights: Vec<MovedLight>,
+}
+
+/// A light a path moves: its layer, its place in the scene, its cache at each keyframe.
+struct MovedLight {
+    layer: usize,
+    base: crate::scene::Light,
+    caches: Vec<Vec<[f32; 4]>>,
 }
 
 impl PathMoves {
@@ -396,7 +402,11 @@ impl PathMoves {
                 .map(|d| base.translated(*d))
                 .collect();
             let caches = crate::bake::run::light_caches(gpu, scene, params, &placed, progress)?;
-            lights.push((layer, base, caches));
+            lights.push(MovedLight {
+                layer,
+                base,
+                caches,
+            });
         }
         Ok(PathMoves { lights })
     }
@@ -415,7 +425,12 @@ impl PathMoves {
         let (Some((i, j, u)), Some(l)) = (path.lighting_segment(t), path.lighting_at(t)) else {
             return Ok(());
         };
-        for (layer, base, caches) in &self.lights {
+        for MovedLight {
+            layer,
+            base,
+            caches,
+        } in &self.lights
+        {
             let d = l.moves.get(&base.name).copied().unwrap_or(Vec3::ZERO);
             if d == Vec3::ZERO {
                 r.unset_live_light(*layer, base)?;
