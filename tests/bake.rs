@@ -464,6 +464,18 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // Not on a terminal: progress comes as plain lines on stderr, one at least per stage.
+    let err = String::from_utf8_lossy(&out.stderr);
+    for stage in [
+        "source irradiance 4/4 (100%)",
+        "surface cache",
+        "added irradiance",
+    ] {
+        assert!(
+            err.contains(&format!("bake: {stage}")),
+            "no progress line for {stage}:\n{err}"
+        );
+    }
     let reference = cache_files(&a);
     assert_eq!(
         reference.len(),

@@ -129,7 +129,7 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
     let pp = path.to_str().unwrap();
     let (f1, f2) = (d.join("frames1"), d.join("frames2"));
     for f in [&f1, &f2] {
-        ok(&[
+        let log = ok(&[
             "fly",
             sp,
             "--path",
@@ -141,6 +141,8 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
             "--fps",
             "4",
         ]);
+        // Not on a terminal: a plain progress line (at least the last frame's).
+        assert!(log.contains("fly: frames 5/5 (100%)"), "{log}");
     }
     let n = std::fs::read_dir(&f1).unwrap().count();
     assert_eq!(n, 5, "1 s at 4 fps: frames at t = 0, 0.25, …, 1");

@@ -1,6 +1,7 @@
 //! `relit`: the command-line front end. Thin: every subcommand calls into the engine library.
 
 mod bench;
+mod progress;
 mod render;
 mod view;
 mod view_lights;
@@ -469,7 +470,18 @@ fn bake(
         "{prefix:>26} {bar:30} {pos}/{len} {msg} ETA {eta}",
     )
     .unwrap();
+    let mut lines = (!progress::on_terminal()).then(|| progress::LogLines::new("bake"));
     let mut progress = |stage: &str, done: usize, total: usize, rays: u64| {
+        if let Some(l) = lines.as_mut() {
+            l.update(stage, done, total, &|secs| {
+                if rays > 0 {
+                    format!("{:.2} M rays/s", rays as f64 / secs * 1e-6)
+                } else {
+                    String::new()
+                }
+            });
+            return;
+        }
         if bars.last().is_none_or(|(s, _)| s != stage) {
             let b = multi.add(indicatif::ProgressBar::new(total as u64));
             b.set_style(style.clone());

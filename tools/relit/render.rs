@@ -294,6 +294,8 @@ pub fn fly(
         &mut |_: &str, _, _, _| {},
     )?;
     let t_start = std::time::Instant::now();
+    let mut lines =
+        (!crate::progress::on_terminal()).then(|| crate::progress::LogLines::new("fly"));
     for i in 0..n {
         let t = t0 + i as f32 / fps;
         let cam = cp.camera_at(t, w, h);
@@ -320,6 +322,11 @@ pub fn fly(
             "{:.2} fps",
             (i + 1) as f64 / t_start.elapsed().as_secs_f64()
         ));
+        if let Some(l) = lines.as_mut() {
+            l.update("frames", i as usize + 1, n as usize, &|secs| {
+                format!("{:.2} fps", (i + 1) as f64 / secs)
+            });
+        }
     }
     bar.finish();
     if let Some(mut child) = ffmpeg {
