@@ -29,7 +29,7 @@ pub struct GpuLive {
 }
 
 /// The live lights' parameters: shadow rays per point each frame, paths per texel per
-/// refinement, and the paths per texel at which a cache counts as converged (the final bake's).
+/// refinement, and the paths per texel at which a cache counts as converged (the preview bake's).
 #[derive(Clone, Copy, Debug)]
 pub struct LiveParams {
     pub samples: u32,
@@ -43,7 +43,7 @@ impl Default for LiveParams {
         LiveParams {
             samples: 8,
             paths_per_step: 2,
-            paths: 128,
+            paths: 32,
             bounces: 6,
         }
     }
