@@ -2,6 +2,7 @@
 
 mod common;
 
+use std::path::Path;
 use std::process::Command;
 
 fn relit(args: &[&str]) -> (i32, String, String) {
@@ -63,7 +64,7 @@ fn info_reports_features_and_network_path() {
     );
     assert!(!err.contains("validation error"), "{err}");
     if out.contains("llvmpipe") {
-        assert!(out.contains("network path: portable"), "{out}");
+        assert!(out.contains("network path: CPU-shaped"), "{out}");
         let rq = out
             .lines()
             .find(|l| l.contains("VK_KHR_ray_query"))
@@ -104,4 +105,129 @@ fn bench_rays_runs_on_a_tiny_batch() {
     assert_eq!(v["results"].as_array().unwrap().len(), 2);
     // A closed room: every closest-hit ray from inside hits something.
     assert_eq!(v["results"][0]["hit_fraction"].as_f64().unwrap(), 1.0);
+}
+
+/// A scene whose mesh is a FIFO or a character device: refused by name at once (a FIFO used to
+/// block forever, /dev/zero to eat all memory).
+#[test]
+fn special_files_are_refused_without_reading_them() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/demo_room");
+    let dir = common::tempdir("cli-special-files");
+    let doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(src.join("scene.json")).unwrap()).unwrap();
+    let mesh = doc["mesh"].as_str().unwrap().to_string();
+    std::fs::write(dir.join("scene.json"), serde_json::to_vec(&doc).unwrap()).unwrap();
+    // Everything else of the bundled scene, linked.
+    for e in std::fs::read_dir(&src).unwrap() {
+        let e = e.unwrap().file_name();
+        if e != "scene.json" && e != mesh.as_str() && e != ".relit" {
+            std::os::unix::fs::symlink(src.join(&e), dir.join(&e)).unwrap();
+        }
+    }
+    for (name, make) in [("FIFO", "fifo"), ("character device", "zero")] {
+        let _ = std::fs::remove_file(dir.join(&mesh));
+        if make == "fifo" {
+            let ok = std::process::Command::new("mkfifo")
+                .arg(dir.join(&mesh))
+                .status()
+                .is_ok_and(|s| s.success());
+            if !ok {
+                continue;
+            }
+        } else {
+            std::os::unix::fs::symlink("/dev/zero", dir.join(&mesh)).unwrap();
+        }
+        let t = std::time::Instant::now();
+        let (code, _, err) = relit(&["scene", "check", dir.to_str().unwrap()]);
+        assert_eq!(code, 1, "{err}");
+        assert!(err.contains(&mesh) && err.contains(name), "{err}");
+        assert!(t.elapsed().as_secs() < 30, "took {:?}", t.elapsed());
+    }
+}
+
+/// A frame too small for the network's pyramid is an error at once (a side under 16 pixels
+/// wrapped a size around and the network never returned).
+#[test]
+fn network_too_small_for_its_pyramid_says_so() {
+    let t = std::time::Instant::now();
+    let (code, _, err) = relit(&["bench", "net", "--width", "8", "--res", "16x12"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("16x12 is too small for 5 pyramid levels"),
+        "{err}"
+    );
+    assert!(t.elapsed().as_secs() < 60, "took {:?}", t.elapsed());
+}
+
+/// A path whose keyframes span 1e9 s is refused before anything renders (it wrote frames until
+/// the disk filled); `--max-frames` raises the bound.
+#[test]
+fn fly_refuses_a_path_longer_than_max_frames() {
+    let dir = common::tempdir("cli-long-path");
+    let path = dir.join("long.json");
+    let key = |t: f64, x: f64| serde_json::json!({ "time": t, "position": [x, 1.5, 0.0], "look_at": [0.0, 1.0, 1.0], "fov_deg": 60.0 });
+    let doc = serde_json::json!({ "interpolation": "linear", "keyframes": [key(0.0, 0.0), key(1e9, 1.0)] });
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/demo_room");
+    let out = dir.join("frames");
+    let t = std::time::Instant::now();
+    let (code, _, err) = relit(&[
+        "fly",
+        scene.to_str().unwrap(),
+        "--path",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("long.json") && err.contains("--max-frames 100000"),
+        "{err}"
+    );
+    assert!(!out.exists(), "nothing written");
+    assert!(t.elapsed().as_secs() < 30, "took {:?}", t.elapsed());
+}
+
+/// `--camera FILE` gets the same checks as the cameras of scene.json: a zero or infinite focal
+/// length, a zero width, a rotation that is not orthonormal are refused by field.
+#[test]
+fn camera_files_are_validated_like_scene_cameras() {
+    let dir = common::tempdir("cli-bad-camera");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/demo_room");
+    let base = serde_json::json!({
+        "width": 64, "height": 48, "fx": 50.0, "fy": 50.0, "cx": 32.0, "cy": 24.0,
+        "position": [0.0, 1.5, 0.0],
+        "rotation": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    });
+    let cases: [(&str, serde_json::Value, &str); 4] = [
+        ("fx0", serde_json::json!({ "fx": 0.0 }), "fx"),
+        ("fxinf", serde_json::json!({ "fx": 1e39 }), "fx"),
+        ("w0", serde_json::json!({ "width": 0 }), "image size"),
+        (
+            "skew",
+            serde_json::json!({ "rotation": [[1.0, 0.5, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] }),
+            "rotation",
+        ),
+    ];
+    for (name, patch, want) in cases {
+        let mut doc = base.clone();
+        for (k, v) in patch.as_object().unwrap() {
+            doc[k] = v.clone();
+        }
+        let f = dir.join(format!("{name}.json"));
+        std::fs::write(&f, serde_json::to_vec(&doc).unwrap()).unwrap();
+        let (code, _, err) = relit(&[
+            "render",
+            scene.to_str().unwrap(),
+            "--camera",
+            f.to_str().unwrap(),
+            "--out",
+            dir.join("x.png").to_str().unwrap(),
+        ]);
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(
+            err.contains(&format!("{name}.json")) && err.contains(want),
+            "{name}: {err}"
+        );
+    }
 }

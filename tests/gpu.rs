@@ -327,13 +327,19 @@ fn device_choice_errors_name_the_devices() {
 }
 
 #[test]
-fn lavapipe_reports_ray_query_and_portable_network_path() {
+fn lavapipe_reports_ray_query_and_cpu_network_path() {
+    use relit_engine::net::{Backend, NetKernels, Storage};
     let gpu = common::gpu();
     assert!(gpu.caps.missing().is_empty());
     if gpu.caps.driver_name.contains("llvmpipe") {
-        // Mesa 25.0 lavapipe has no cooperative matrices: the portable network path must run.
+        // Mesa 25.0 lavapipe has no cooperative matrices: the CPU-shaped kernels run with fp32
+        // storage, the portable ones with fp16.
         assert!(gpu.caps.coop_matrix.is_empty());
-        assert_eq!(gpu.network_path(), "portable");
+        assert!(gpu.network_path().starts_with("CPU-shaped"));
+        let k = NetKernels::new(&gpu, Storage::F32).unwrap();
+        assert_eq!(k.backend, Backend::CpuLanes);
+        let k = NetKernels::new(&gpu, Storage::F16).unwrap();
+        assert_eq!(k.backend, Backend::Portable);
     }
     common::assert_no_validation_errors(&gpu);
 }

@@ -6,8 +6,8 @@ mod common;
 
 use relit_engine::gpu::{self, vk};
 use relit_engine::net::{
-    conv_reference, select_backend, upsample_add_reference, Backend, Conv, Epilogue, NetKernels,
-    Network, Storage, Tensor,
+    conv_reference, select_backend, upsample_add_reference, Backend, Epilogue, NetKernels, Network,
+    Storage, Tensor,
 };
 use relit_engine::scene::synth::Rng;
 
@@ -27,17 +27,28 @@ fn max_err(a: &[f32], b: &[f32]) -> (f32, f32) {
 fn conv_kernels_match_cpu() {
     let gpu = common::gpu();
     let mut rng = Rng::new(5);
-    for storage in [Storage::F32, Storage::F16] {
-        let kern = NetKernels::with_backend(&gpu, storage, Backend::Portable).unwrap();
+    // The portable kernels in both storages, and the CPU-shaped one (fp32) at several
+    // blockings: 4, 8, 16 output channels per invocation, 1 or 2 input groups per dispatch,
+    // 1 to 4 rows (3: rows past the image's last).
+    let mut kernels = vec![
+        NetKernels::with_backend(&gpu, Storage::F32, Backend::Portable).unwrap(),
+        NetKernels::with_backend(&gpu, Storage::F16, Backend::Portable).unwrap(),
+    ];
+    for (ocn, ci4, rows) in [(4, 2, 4), (4, 1, 3), (8, 2, 1), (16, 1, 2)] {
+        kernels.push(NetKernels::with_lanes(&gpu, ocn, ci4, rows).unwrap());
+    }
+    for kern in &kernels {
+        let storage = kern.storage;
         for &(ic, oc, h, w, k, stride) in &[
             (6u32, 20u32, 7u32, 19u32, 3u32, 1u32),
             (18, 18, 9, 11, 4, 2),
             (12, 6, 5, 17, 3, 1),
+            (20, 10, 6, 9, 1, 1),
         ] {
             let x = random(&mut rng, (ic * h * w) as usize, -1.0, 1.0);
             let wt = random(&mut rng, (oc * ic * k * k) as usize, -0.3, 0.3);
             let bias = random(&mut rng, oc as usize, -0.2, 0.2);
-            let layer = Conv::new(&gpu, storage, &wt, Some(&bias), oc, ic, k, stride, 1).unwrap();
+            let layer = kern.layer(&wt, Some(&bias), oc, ic, k, stride, 1).unwrap();
             let (oh, ow) = layer.out_size(h, w);
             let res_ok = oc == ic && stride == 1;
             let resid = random(&mut rng, (oc * oh * ow) as usize, -1.0, 1.0);
@@ -88,7 +99,8 @@ fn conv_kernels_match_cpu() {
             };
             assert!(
                 e <= tol,
-                "{storage:?} conv {ic}->{oc} k{k} s{stride}: max error {e} (scale {s})"
+                "{storage:?} {:?} conv {ic}->{oc} k{k} s{stride}: max error {e} (scale {s})",
+                kern.backend
             );
         }
     }
@@ -153,6 +165,15 @@ fn network_matches_pytorch_golden() {
 #[test]
 fn network_weights_errors_name_the_problem() {
     let gpu = common::gpu();
+    // A character device is refused before reading (it used to be read until memory ran out).
+    let e = Network::load(&gpu, std::path::Path::new("/dev/zero"), Storage::F32)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("/dev/zero") && e.contains("character device"),
+        "{e}"
+    );
     let dir = common::tempdir("netweights");
     let bad = dir.join("bad.safetensors");
     std::fs::write(&bad, b"not a safetensors file").unwrap();

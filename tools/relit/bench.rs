@@ -87,8 +87,12 @@ pub enum BenchCmd {
         #[arg(long, default_value = "256x192", value_parser = crate::parse_res)]
         res: (u32, u32),
         /// Element type of activations and weights in memory.
-        #[arg(long, value_enum, default_value = "f16")]
+        #[arg(long, value_enum, default_value = "auto")]
         storage: crate::StorageArg,
+        /// Use the portable kernels even where the device would take others (the CPU-shaped
+        /// ones on lavapipe, cooperative matrices on GPUs): the same network both ways.
+        #[arg(long)]
+        portable: bool,
         /// Timed inferences after one warm-up (the median is reported).
         #[arg(long, default_value_t = 3)]
         repeats: u32,
@@ -134,6 +138,7 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             width,
             res,
             storage,
+            portable,
             repeats,
             json,
             torch,
@@ -141,7 +146,7 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             net_bench(
                 *width,
                 *res,
-                (*storage).into(),
+                (*storage, *portable),
                 *repeats,
                 json.as_ref(),
                 opts,
@@ -378,8 +383,18 @@ fn bake_bench(
         p.cache_samples,
         p.bounces
     );
+    let radiance = relit_engine::bake::radiance_mesh::build(
+        &gpu,
+        &si,
+        &scene.lights,
+        &geom,
+        &mesh,
+        &views,
+        p.irradiance_samples,
+        1,
+    )?;
     // Warm-up: lavapipe compiles each shader at its first dispatch.
-    si.record_warm(&gpu, &mesh, &views, &out)?;
+    si.record_warm(&gpu, &mesh, &radiance, &views, &out)?;
     // The surface cache of one light, whole (it does not depend on the view).
     let mut t_c = 0.0;
     if let Some(l) = &light {
@@ -396,7 +411,16 @@ fn bake_bench(
     let n = nviews.min(scene.views.len()).max(1);
     for v in 0..n as u32 {
         t_s += timed(&gpu, "e_src", |cmd| {
-            si.record(cmd, &mesh, &views, v, p.irradiance_samples, 1, &out)
+            si.record(
+                cmd,
+                &mesh,
+                &radiance,
+                &views,
+                v,
+                p.irradiance_samples,
+                1,
+                &out,
+            )
         })?;
         t_m += timed(&gpu, "m_src", |cmd| mi.record(cmd, &mesh, &views, v, &out))?;
         if let Some(l) = &light {
@@ -486,7 +510,7 @@ fn light_bench(
     let gpu = crate::open_gpu(opts)?;
     let mut args = fa.clone();
     args.mode = Some(crate::render::ModeArg::Ratio);
-    let (mut r, _) = crate::render::open_renderer(&gpu, &scene, &args)?;
+    let (mut r, _) = crate::render::open_renderer(&gpu, &scene, &args, None)?;
     let added: Vec<&relit_engine::scene::Light> =
         scene.lights.iter().filter(|l| !l.original).collect();
     let Some(first) = added.first() else {
@@ -626,19 +650,21 @@ fn bc6h_bench(cache: &std::path::Path, maps: usize, opts: &GpuOptions) -> Result
 fn net_bench(
     width: u32,
     (w, h): (u32, u32),
-    storage: relit_engine::net::Storage,
+    (storage, portable): (crate::StorageArg, bool),
     repeats: u32,
     json: Option<&PathBuf>,
     opts: &GpuOptions,
 ) -> Result<()> {
-    use relit_engine::net::{NetConfig, NetKernels, Network, RandomParams, Tensor};
+    use relit_engine::net::{Backend, NetConfig, NetKernels, Network, RandomParams, Tensor};
     let gpu = crate::open_gpu(opts)?;
+    let storage = storage.resolve(&gpu.caps, Some((w, h)));
     let cfg = NetConfig::paper(width);
-    let net = Network::from_params(
-        NetKernels::new(&gpu, storage)?,
-        cfg.clone(),
-        &RandomParams(1),
-    )?;
+    let kernels = if portable {
+        NetKernels::with_backend(&gpu, storage, Backend::Portable)?
+    } else {
+        NetKernels::new(&gpu, storage)?
+    };
+    let net = Network::from_params(kernels, cfg.clone(), &RandomParams(1))?;
     let bufs = net.buffers(h, w)?;
     let x = Tensor::new(&gpu, "input", cfg.in_channels, h, w, storage)?;
     let mut rng = synth::Rng::new(3);
@@ -726,9 +752,9 @@ fn frame_bench(
     if random_net {
         args.mode = Some(crate::render::ModeArg::Ulr);
     }
-    let (r, mut mode) = crate::render::open_renderer(&gpu, &scene, &args)?;
+    let (r, mut mode) = crate::render::open_renderer(&gpu, &scene, &args, Some((w, h)))?;
     let mut r = if random_net {
-        let storage = args.storage.into();
+        let storage = args.storage.resolve(&gpu.caps, Some((w, h)));
         let net = Network::from_params(
             NetKernels::new(&gpu, storage)?,
             NetConfig::paper(width),

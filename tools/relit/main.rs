@@ -98,6 +98,10 @@ enum Cmd {
         res: (u32, u32),
         #[arg(long, default_value_t = 24.0)]
         fps: f32,
+        /// The most frames a path may make (a path whose keyframes span days would write frames
+        /// until the disk fills); raise it for a longer film.
+        #[arg(long, default_value_t = 100_000)]
+        max_frames: u64,
         #[command(flatten)]
         frame: render::FrameArgs,
     },
@@ -157,15 +161,33 @@ enum Cmd {
 /// Element type of the network's tensors in device memory.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum StorageArg {
+    /// fp32 on CPU devices (lavapipe: the CPU-shaped kernels, 1.3–1.5× faster there) when the
+    /// frame fits, fp16 on GPUs.
+    Auto,
     F16,
     F32,
 }
 
-impl From<StorageArg> for relit_engine::net::Storage {
-    fn from(s: StorageArg) -> Self {
-        match s {
-            StorageArg::F16 => relit_engine::net::Storage::F16,
-            StorageArg::F32 => relit_engine::net::Storage::F32,
+impl StorageArg {
+    /// `auto`: fp32 on CPU devices when a frame of `size` fits the device's storage-buffer range
+    /// (the CPU-shaped kernels need fp32; at 1024×768 the 66-channel input is 214 MB, beyond
+    /// lavapipe's 128 MiB), else fp16. No size known (the viewer's window): fp16.
+    pub fn resolve(
+        self,
+        caps: &relit_engine::gpu::Caps,
+        size: Option<(u32, u32)>,
+    ) -> relit_engine::net::Storage {
+        use relit_engine::net::{Storage, INPUT_CHANNELS};
+        let cpu = caps.device_type == relit_engine::gpu::vk::PhysicalDeviceType::CPU;
+        let fits = size.is_some_and(|(w, h)| {
+            let bytes = w as u64 * h as u64 * INPUT_CHANNELS.div_ceil(4) as u64 * 16;
+            bytes <= caps.max_storage_buffer_range as u64
+        });
+        match self {
+            StorageArg::F16 => Storage::F16,
+            StorageArg::F32 => Storage::F32,
+            StorageArg::Auto if cpu && fits => Storage::F32,
+            StorageArg::Auto => Storage::F16,
         }
     }
 }
@@ -624,8 +646,9 @@ fn main() {
             out,
             res,
             fps,
+            max_frames,
             frame,
-        } => render::fly(&opts, scene, path, out, *res, *fps, frame),
+        } => render::fly(&opts, scene, path, out, *res, (*fps, *max_frames), frame),
         Cmd::Dump {
             scene,
             camera,

@@ -28,7 +28,7 @@ pub struct FrameArgs {
     #[arg(long, value_enum)]
     pub quality: Option<crate::Quality>,
     /// Element type of the network's tensors in device memory.
-    #[arg(long, value_enum, default_value = "f16")]
+    #[arg(long, value_enum, default_value = "auto")]
     pub storage: crate::StorageArg,
     /// Storage of the per-view maps: `bc6h` (1 byte/texel), `rgba16f` (8), or `auto`: BC6H on
     /// GPUs, RGBA16F on CPU devices such as lavapipe, which decode BC6H in software at every
@@ -127,9 +127,15 @@ pub fn rescale(c: &Camera, w: u32, h: u32) -> Camera {
 }
 
 /// Opens the scene's bake on the device with the network (when weights are given).
-pub fn open_renderer(gpu: &Arc<Gpu>, scene: &Scene, a: &FrameArgs) -> Result<(Renderer, Mode)> {
+/// `size`: the frame size when known (it decides `--storage auto`).
+pub fn open_renderer(
+    gpu: &Arc<Gpu>,
+    scene: &Scene,
+    a: &FrameArgs,
+    size: Option<(u32, u32)>,
+) -> Result<(Renderer, Mode)> {
     let params = find_bake(scene, a.quality)?;
-    let storage: Storage = a.storage.into();
+    let storage: Storage = a.storage.resolve(&gpu.caps, size);
     let cpu_device = gpu.caps.device_type == relit_engine::gpu::vk::PhysicalDeviceType::CPU;
     let format = match a.maps {
         MapsArg::Bc6h if !gpu.caps.bc6h_sampled_linear => {
@@ -210,7 +216,7 @@ pub fn render(
     let cam = resolve_camera(&scene, camera, res)?;
     let light = lighting(&scene, preset)?;
     let gpu = crate::open_gpu(opts)?;
-    let (mut r, mode) = open_renderer(&gpu, &scene, a)?;
+    let (mut r, mode) = open_renderer(&gpu, &scene, a, Some((cam.width, cam.height)))?;
     r.render(&cam, &light, mode, a.exposure, None)?;
     write_frame(&r, out)?;
     println!("{}: {}x{} ({mode:?})", out.display(), cam.width, cam.height);
@@ -224,7 +230,7 @@ pub fn fly(
     path: &Path,
     out: &Path,
     res: (u32, u32),
-    fps: f32,
+    (fps, max_frames): (f32, u64),
     a: &FrameArgs,
 ) -> Result<()> {
     let scene = Scene::load(dir)?;
@@ -232,10 +238,18 @@ pub fn fly(
     if !(fps > 0.0 && fps <= 240.0) {
         bail!("--fps {fps}: expected a value in (0, 240]");
     }
-    let gpu = crate::open_gpu(opts)?;
-    let (mut r, mode) = open_renderer(&gpu, &scene, a)?;
     let (t0, t1) = (cp.start(), cp.duration());
-    let n = ((t1 - t0) * fps).floor() as u64 + 1;
+    let frames = ((t1 - t0) as f64 * fps as f64).floor() + 1.0;
+    if frames.is_nan() || frames > max_frames as f64 {
+        bail!(
+            "{}: the path lasts {:.0} s, {frames:.0} frames at {fps} fps; more than --max-frames {max_frames} (raise it for a longer film)",
+            path.display(),
+            t1 - t0
+        );
+    }
+    let n = frames as u64;
+    let gpu = crate::open_gpu(opts)?;
+    let (mut r, mode) = open_renderer(&gpu, &scene, a, Some(res))?;
     let video = out.extension().is_some_and(|e| e == "mp4");
     let (w, h) = res;
     let tmp = scene::temp_path(out);
@@ -418,7 +432,7 @@ pub fn dump(
     fa.weights = None;
     fa.mode = Some(ModeArg::Ulr);
     fa.storage = crate::StorageArg::F32;
-    let (mut r, _) = open_renderer(&gpu, &scene, &fa)?;
+    let (mut r, _) = open_renderer(&gpu, &scene, &fa, Some((cam.width, cam.height)))?;
     // An input view's own image must not be among its inputs (the network would learn to copy
     // it): leave it out of every pass unless --keep-view.
     let view_index = match camera.parse::<usize>() {

@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use super::views::{GpuViews, ViewData};
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, RayScene};
+use crate::gpu::{bytes_of, Bind, Buffer, Gpu, Pipeline, RayScene};
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -38,36 +38,22 @@ impl AlbedoMesh {
         views: &GpuViews,
         e_src: &Buffer,
     ) -> Result<Vec<[f32; 4]>> {
-        let gpu = &self.pipeline.gpu;
-        let out = Buffer::new(
-            gpu,
-            "albedo",
-            nverts as u64 * 16,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            MemoryLocation::GpuOnly,
-        )?;
         let push = Push {
             nverts,
             width: views.width,
             height: views.height,
             nviews: views.count,
         };
-        let mut binds = vec![
-            (4, Bind::Buffer(&mesh.positions)),
-            (5, Bind::Buffer(e_src)),
-            (6, Bind::Buffer(&out)),
-        ];
-        binds.extend(views.binds(0));
-        let mut res = Ok(());
-        gpu.submit(|cmd| {
-            res = self
-                .pipeline
+        super::views::run_vertices(&self.pipeline.gpu, nverts, |cmd, out| {
+            let mut binds = vec![
+                (4, Bind::Buffer(&mesh.positions)),
+                (5, Bind::Buffer(e_src)),
+                (6, Bind::Buffer(out)),
+            ];
+            binds.extend(views.binds(0));
+            self.pipeline
                 .dispatch(cmd, &binds, bytes_of(&push), (nverts, 1, 1))
-        })?;
-        res?;
-        let mut v: Vec<[f32; 4]> = out.download_vec()?;
-        v.truncate(nverts as usize);
-        Ok(v)
+        })
     }
 }
 

@@ -22,7 +22,7 @@ use crate::scene::image::{load_rgb, write_exr, RgbImage};
 use crate::scene::{write_atomic, Light, Scene};
 
 /// Bump when a pass changes what it computes: old caches are then not reused.
-pub const BAKE_VERSION: u32 = 5;
+pub const BAKE_VERSION: u32 = 6;
 
 #[derive(Clone, Debug)]
 pub struct BakeParams {
@@ -450,18 +450,40 @@ pub fn bake(
         .filter(|&i| !esrc_file(&cache, &scene.views[i].name).exists())
         .collect();
     let (t0, mut rays) = (Instant::now(), 0u64);
+    let radiance = if todo.is_empty() {
+        None
+    } else {
+        Some(super::radiance_mesh::build(
+            gpu,
+            &si,
+            &scene.lights,
+            &geom,
+            &mesh,
+            &views,
+            p.irradiance_samples,
+            p.seed,
+        )?)
+    };
+    // Declared original lights add one shadow ray per sample.
+    let per_sample = 1 + scene.lights.iter().any(|l| l.original) as u64;
+    if radiance.is_some() {
+        rays += geom.positions.len() as u64 * p.irradiance_samples as u64 * per_sample;
+    }
     for (k, &i) in todo.iter().enumerate() {
+        let Some(radiance) = radiance.as_ref() else {
+            break;
+        };
         let mut res = Ok(());
         let (v, n) = (i as u32, p.irradiance_samples);
         gpu.submit(|cmd| {
             res = if p.denoise.radius > 0 {
-                si.record(cmd, &mesh, &views, v, n, p.seed, &noisy)
+                si.record(cmd, &mesh, radiance, &views, v, n, p.seed, &noisy)
                     .and_then(|_| {
                         crate::gpu::full_barrier(gpu, cmd);
                         dn.record(cmd, &views, v, p.denoise, &noisy, None, &out)
                     })
             } else {
-                si.record(cmd, &mesh, &views, v, n, p.seed, &out)
+                si.record(cmd, &mesh, radiance, &views, v, n, p.seed, &out)
             }
         })?;
         res?;
@@ -470,8 +492,6 @@ pub fn bake(
             &esrc_file(&cache, &scene.views[i].name),
             &to_image(w, h, &e),
         )?;
-        // Declared original lights add one shadow ray per sample.
-        let per_sample = 1 + scene.lights.iter().any(|l| l.original) as u64;
         rays += npix * p.irradiance_samples as u64 * per_sample;
         progress.update("source irradiance", k + 1, todo.len(), rays);
     }

@@ -22,7 +22,7 @@ pub const LIGHT_SKIN: f32 = 0.03;
 pub const LEAK_PX: f32 = 2.0;
 
 /// Whether view pixel `q` (global index) shows, or bleeds from, a declared light.
-fn near_light(d: &ViewData, lights: &[GpuLight], q: usize) -> bool {
+pub(super) fn near_light(d: &ViewData, lights: &[GpuLight], q: usize) -> bool {
     let g = d.pos[q];
     let margin = LEAK_PX * g[3] / d.cameras[q / d.pixels()].fx;
     let p = Vec3::from_slice(&g[..3]);
@@ -41,10 +41,16 @@ struct Push {
     samples: u32,
     seed: u32,
     nlights: u32,
+    count: u32,
 }
+
+/// Random streams of vertices start past every pixel's (`VERTEX_KEY` in the shader).
+const VERTEX_KEY: u32 = 0x8000_0000;
 
 pub struct SourceIrradiance {
     pipeline: Pipeline,
+    /// The same estimator at mesh vertices (for the radiance mesh).
+    vertices: Pipeline,
     /// The scene's declared original lights (one zero light when there are none: Vulkan has
     /// no empty buffers).
     lights: Buffer,
@@ -60,34 +66,45 @@ pub fn original_lights(lights: &[Light]) -> Vec<GpuLight> {
         .collect()
 }
 
+/// The declared original lights of `lights` in a storage buffer, and their count (one zero
+/// light when there are none: Vulkan has no empty buffers).
+pub(super) fn lights_buffer(gpu: &Arc<Gpu>, lights: &[Light]) -> Result<(Buffer, u32)> {
+    let gl = original_lights(lights);
+    let n = gl.len() as u32;
+    let data = if gl.is_empty() {
+        vec![bytemuck::Zeroable::zeroed()]
+    } else {
+        gl
+    };
+    let buf = Buffer::from_slice(
+        gpu,
+        "original lights",
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        &data,
+    )?;
+    Ok((buf, n))
+}
+
 impl SourceIrradiance {
     /// `lights`: the scene's lights; the original ones among them are sampled directly.
     pub fn new(gpu: &Arc<Gpu>, lights: &[Light]) -> Result<SourceIrradiance> {
-        let gl = original_lights(lights);
-        let nlights = gl.len() as u32;
-        let data = if gl.is_empty() {
-            vec![bytemuck::Zeroable::zeroed()]
-        } else {
-            gl
-        };
+        let (lights, nlights) = lights_buffer(gpu, lights)?;
         Ok(SourceIrradiance {
             pipeline: Pipeline::compute(gpu, "bake/source_irradiance.comp")?,
-            lights: Buffer::from_slice(
-                gpu,
-                "original lights",
-                vk::BufferUsageFlags::STORAGE_BUFFER,
-                &data,
-            )?,
+            vertices: Pipeline::compute(gpu, "bake/source_irradiance_vertices.comp")?,
+            lights,
             nlights,
         })
     }
 
     /// Records E_src of `view` into `out` (one vec4 per pixel: rgb irradiance, w = rays used).
+    /// `radiance`: the filled radiance mesh (`radiance_mesh`), for hits no view sees.
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         cmd: vk::CommandBuffer,
         mesh: &RayScene,
+        radiance: &Buffer,
         views: &GpuViews,
         view: u32,
         samples: u32,
@@ -102,11 +119,14 @@ impl SourceIrradiance {
             samples,
             seed,
             nlights: self.nlights,
+            count: 0,
         };
         let mut binds = vec![
             (0, Bind::Accel(mesh.tlas.raw)),
             (5, Bind::Buffer(out)),
             (6, Bind::Buffer(&self.lights)),
+            (7, Bind::Buffer(&mesh.indices)),
+            (8, Bind::Buffer(radiance)),
         ];
         binds.extend(views.binds(1));
         self.pipeline.dispatch(
@@ -123,11 +143,12 @@ impl SourceIrradiance {
         &self,
         gpu: &Arc<Gpu>,
         mesh: &RayScene,
+        radiance: &Buffer,
         views: &GpuViews,
         out: &Buffer,
     ) -> Result<()> {
         let mut res = Ok(());
-        gpu.submit(|cmd| res = self.record(cmd, mesh, views, 0, 1, 0, out))?;
+        gpu.submit(|cmd| res = self.record(cmd, mesh, radiance, views, 0, 1, 0, out))?;
         res
     }
 
@@ -135,13 +156,54 @@ impl SourceIrradiance {
     pub fn run(
         &self,
         mesh: &RayScene,
+        radiance: &Buffer,
         views: &GpuViews,
         view: u32,
         samples: u32,
         seed: u32,
     ) -> Result<Vec<[f32; 4]>> {
         super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
-            self.record(cmd, mesh, views, view, samples, seed, out)
+            self.record(cmd, mesh, radiance, views, view, samples, seed, out)
+        })
+    }
+
+    /// E_src at vertices `first..first + count` of `mesh` (normals: one unit vec4 per vertex,
+    /// zero to skip), no view excluded; one vec4 per vertex as the per-pixel pass.
+    #[allow(clippy::too_many_arguments)]
+    pub fn run_vertices(
+        &self,
+        mesh: &RayScene,
+        radiance: &Buffer,
+        views: &GpuViews,
+        normals: &Buffer,
+        first: u32,
+        count: u32,
+        samples: u32,
+        seed: u32,
+    ) -> Result<Vec<[f32; 4]>> {
+        let push = Push {
+            view: first,
+            width: views.width,
+            height: views.height,
+            nviews: views.count,
+            samples,
+            seed,
+            nlights: self.nlights,
+            count,
+        };
+        super::views::run_vertices(&self.pipeline.gpu, count, |cmd, out| {
+            let mut binds = vec![
+                (0, Bind::Accel(mesh.tlas.raw)),
+                (5, Bind::Buffer(out)),
+                (6, Bind::Buffer(&self.lights)),
+                (7, Bind::Buffer(&mesh.indices)),
+                (8, Bind::Buffer(radiance)),
+                (9, Bind::Buffer(&mesh.positions)),
+                (10, Bind::Buffer(normals)),
+            ];
+            binds.extend(views.binds(1));
+            self.vertices
+                .dispatch(cmd, &binds, bytes_of(&push), (count, 1, 1))
         })
     }
 }
@@ -162,17 +224,89 @@ fn meets_light(lights: &[GpuLight], o: Vec3, d: Vec3, hit: Option<(f32, Vec3)>) 
     })
 }
 
-/// CPU reference of the same estimator (same random numbers, brute-force ray casting).
-pub fn reference(
-    mesh: &Mesh,
-    d: &ViewData,
-    lights: &[GpuLight],
-    view: usize,
+/// The radiance mesh at barycentrics `bary` of triangle `tri`; w = 1 when all three corners
+/// have a radiance (`mesh_radiance` in the shader).
+fn mesh_radiance(mesh: &Mesh, radiance: &[[f32; 4]], tri: u32, bary: [f32; 2]) -> [f32; 4] {
+    let b = [1.0 - bary[0] - bary[1], bary[0], bary[1]];
+    let mut r = [0.0, 0.0, 0.0, 1.0f32];
+    for (k, &v) in mesh.triangles[tri as usize].iter().enumerate() {
+        let c = radiance[v as usize];
+        for i in 0..3 {
+            r[i] += b[k] * c[i];
+        }
+        if c[3] <= 0.0 {
+            r[3] = 0.0;
+        }
+    }
+    r
+}
+
+/// What the CPU references share: the scene, its views, declared lights and radiance mesh.
+pub struct RefScene<'a> {
+    pub mesh: &'a Mesh,
+    pub radiance: &'a [[f32; 4]],
+    pub views: &'a ViewData,
+    pub lights: &'a [GpuLight],
+}
+
+/// The estimator at x (normal n), views other than `exclude`, random stream `key`
+/// (`source_irradiance` in the shader).
+fn estimate(
+    r: &RefScene,
+    x: Vec3,
+    n: Vec3,
+    exclude: usize,
+    key: u32,
     samples: u32,
     seed: u32,
-) -> Vec<[f32; 4]> {
-    let npix = d.pixels();
+) -> [f32; 4] {
+    let (d, lights) = (r.views, r.lights);
     let nl = lights.len() as u32;
+    let (mut sum, mut direct, mut valid, mut on_light) = (Vec3::ZERO, Vec3::ZERO, 0u32, 0u32);
+    for s in 0..samples {
+        if nl > 0 {
+            let l = s % nl;
+            let per_light = (samples - l).div_ceil(nl) as f32;
+            let u = rand2([key, s, !seed]);
+            direct += lights[l as usize].direct(r.mesh, x, n, u, LIGHT_SKIN) / per_light;
+        }
+        let dir = cosine_dir(n, rand2([key, s, seed]));
+        let o = x + n * 1e-3;
+        let h = crate::cpu::closest_hit(r.mesh, o, dir, 1e-3, 1e4);
+        let hit = h.map(|h| (h.t, o + dir * h.t));
+        if meets_light(lights, o, dir, hit) {
+            on_light += 1;
+            continue;
+        }
+        let (Some(h), Some((_, y))) = (h, hit) else {
+            continue;
+        };
+        let l = match d
+            .best_view(y, dir, exclude)
+            .filter(|&q| !near_light(d, lights, q))
+        {
+            Some(q) => [d.img[q][0], d.img[q][1], d.img[q][2], 1.0],
+            None => mesh_radiance(r.mesh, r.radiance, h.tri, h.bary),
+        };
+        if l[3] > 0.0 {
+            sum += Vec3::from_slice(&l[..3]);
+            valid += 1;
+        }
+    }
+    let mut e = if valid > 0 {
+        let n_s = samples as f32;
+        sum * std::f32::consts::PI / valid as f32 * (n_s - on_light as f32) / n_s
+    } else {
+        Vec3::ZERO
+    };
+    e += direct;
+    [e.x, e.y, e.z, (valid + on_light) as f32]
+}
+
+/// CPU reference of the per-pixel pass (same random numbers, brute-force ray casting).
+pub fn reference(r: &RefScene, view: usize, samples: u32, seed: u32) -> Vec<[f32; 4]> {
+    let d = r.views;
+    let npix = d.pixels();
     (0..npix)
         .map(|p| {
             let gi = view * npix + p;
@@ -181,42 +315,29 @@ pub fn reference(
             }
             let x = Vec3::from_slice(&d.pos[gi][..3]);
             let n = facing_normal(d, gi, view);
-            let (mut sum, mut direct, mut valid, mut on_light) =
-                (Vec3::ZERO, Vec3::ZERO, 0u32, 0u32);
-            for s in 0..samples {
-                if nl > 0 {
-                    let l = s % nl;
-                    let per_light = (samples - l).div_ceil(nl) as f32;
-                    let u = rand2([gi as u32, s, !seed]);
-                    direct += lights[l as usize].direct(mesh, x, n, u, LIGHT_SKIN) / per_light;
-                }
-                let dir = cosine_dir(n, rand2([gi as u32, s, seed]));
-                let o = x + n * 1e-3;
-                let hit =
-                    crate::cpu::closest_hit(mesh, o, dir, 1e-3, 1e4).map(|h| (h.t, o + dir * h.t));
-                if meets_light(lights, o, dir, hit) {
-                    on_light += 1;
-                    continue;
-                }
-                let Some((_, y)) = hit else {
-                    continue;
-                };
-                if let Some(q) = d
-                    .best_view(y, dir, view)
-                    .filter(|&q| !near_light(d, lights, q))
-                {
-                    sum += Vec3::from_slice(&d.img[q][..3]);
-                    valid += 1;
-                }
+            estimate(r, x, n, view, gi as u32, samples, seed)
+        })
+        .collect()
+}
+
+/// CPU reference of the per-vertex pass.
+pub fn reference_vertices(
+    r: &RefScene,
+    normals: &[Vec3],
+    samples: u32,
+    seed: u32,
+) -> Vec<[f32; 4]> {
+    r.mesh
+        .positions
+        .iter()
+        .zip(normals)
+        .enumerate()
+        .map(|(v, (p, n))| {
+            if n.length_squared() < 0.5 {
+                return [0.0; 4];
             }
-            let mut e = if valid > 0 {
-                let n_s = samples as f32;
-                sum * std::f32::consts::PI / valid as f32 * (n_s - on_light as f32) / n_s
-            } else {
-                Vec3::ZERO
-            };
-            e += direct;
-            [e.x, e.y, e.z, (valid + on_light) as f32]
+            let key = VERTEX_KEY.wrapping_add(v as u32);
+            estimate(r, Vec3::from(*p), *n, usize::MAX, key, samples, seed)
         })
         .collect()
 }

@@ -172,6 +172,27 @@ pub fn run_pixels(
     Ok(v)
 }
 
+/// Runs a pass that writes one vec4 per mesh vertex into `out` and reads it back.
+pub fn run_vertices(
+    gpu: &Arc<Gpu>,
+    nverts: u32,
+    record: impl FnOnce(vk::CommandBuffer, &Buffer) -> Result<()>,
+) -> Result<Vec<[f32; 4]>> {
+    let out = Buffer::new(
+        gpu,
+        "vertex pass out",
+        nverts.max(1) as u64 * 16,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        crate::gpu::MemoryLocation::GpuOnly,
+    )?;
+    let mut res = Ok(());
+    gpu.submit(|cmd| res = record(cmd, &out))?;
+    res?;
+    let mut v: Vec<[f32; 4]> = out.download_vec()?;
+    v.truncate(nverts as usize);
+    Ok(v)
+}
+
 /// Camera centre of view `j`, oriented normal at a pixel (facing that view's camera).
 pub fn facing_normal(d: &ViewData, gi: usize, view: usize) -> Vec3 {
     let x = Vec3::from_slice(&d.pos[gi][..3]);

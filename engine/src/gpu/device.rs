@@ -640,6 +640,8 @@ impl Gpu {
     pub fn network_path(&self) -> &'static str {
         if self.caps.fp16_coop_shape().is_some() {
             "cooperative matrix"
+        } else if self.caps.device_type == vk::PhysicalDeviceType::CPU {
+            "CPU-shaped (fp32 storage: lanes are pixels, weights at uniform addresses)"
         } else {
             "portable"
         }

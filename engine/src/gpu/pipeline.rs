@@ -94,6 +94,8 @@ pub fn reflect(name: &str) -> Result<Reflected> {
 #[derive(Clone, Copy)]
 pub enum Bind<'a> {
     Buffer(&'a Buffer),
+    /// A window of a buffer: (buffer, offset, size) in bytes.
+    BufferRange(&'a Buffer, u64, u64),
     StorageImage(vk::ImageView),
     /// A combined image sampler in SHADER_READ_ONLY_OPTIMAL layout.
     Sampled(vk::ImageView, vk::Sampler),
@@ -231,6 +233,11 @@ pub struct GraphicsDesc<'a> {
 
 impl Pipeline {
     pub fn compute(gpu: &Arc<Gpu>, name: &str) -> Result<Pipeline> {
+        Pipeline::compute_specialized(gpu, name, &[])
+    }
+
+    /// A compute pipeline whose specialization constants 0, 1, … take `spec` (u32 each).
+    pub fn compute_specialized(gpu: &Arc<Gpu>, name: &str, spec: &[u32]) -> Result<Pipeline> {
         let r = reflect(name)?;
         let workgroup = r.workgroup.unwrap_or((1, 1, 1));
         let Layout {
@@ -240,10 +247,23 @@ impl Pipeline {
             push_size,
         } = make_layout(gpu, name, &[(r, vk::ShaderStageFlags::COMPUTE)])?;
         let module = make_module(gpu, name)?;
-        let stage = vk::PipelineShaderStageCreateInfo::default()
+        let entries: Vec<vk::SpecializationMapEntry> = (0..spec.len() as u32)
+            .map(|i| vk::SpecializationMapEntry {
+                constant_id: i,
+                offset: i * 4,
+                size: 4,
+            })
+            .collect();
+        let spec_info = vk::SpecializationInfo::default()
+            .map_entries(&entries)
+            .data(bytemuck::cast_slice(spec));
+        let mut stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(module)
             .name(c"main");
+        if !spec.is_empty() {
+            stage = stage.specialization_info(&spec_info);
+        }
         let info = [vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout)];
@@ -451,9 +471,10 @@ impl Pipeline {
             })?;
             let ok = matches!(
                 (b, *ty),
-                (Bind::Buffer(_), vk::DescriptorType::STORAGE_BUFFER)
-                    | (Bind::Buffer(_), vk::DescriptorType::UNIFORM_BUFFER)
-                    | (Bind::StorageImage(_), vk::DescriptorType::STORAGE_IMAGE)
+                (
+                    Bind::Buffer(_) | Bind::BufferRange(..),
+                    vk::DescriptorType::STORAGE_BUFFER | vk::DescriptorType::UNIFORM_BUFFER
+                ) | (Bind::StorageImage(_), vk::DescriptorType::STORAGE_IMAGE)
                     | (
                         Bind::Sampled(..),
                         vk::DescriptorType::COMBINED_IMAGE_SAMPLER
@@ -474,6 +495,12 @@ impl Pipeline {
                     vk::DescriptorBufferInfo::default()
                         .buffer(buf.raw)
                         .range(vk::WHOLE_SIZE),
+                ),
+                Bind::BufferRange(buf, offset, size) => buf_infos.push(
+                    vk::DescriptorBufferInfo::default()
+                        .buffer(buf.raw)
+                        .offset(*offset)
+                        .range(*size),
                 ),
                 Bind::StorageImage(v) => img_infos.push(
                     vk::DescriptorImageInfo::default()
@@ -504,7 +531,7 @@ impl Pipeline {
                 .dst_binding(*binding)
                 .descriptor_type(ty);
             let w = match b {
-                Bind::Buffer(_) => {
+                Bind::Buffer(_) | Bind::BufferRange(..) => {
                     bi += 1;
                     w.buffer_info(std::slice::from_ref(&buf_infos[bi - 1]))
                 }

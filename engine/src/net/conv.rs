@@ -55,7 +55,9 @@ impl Tensor {
             gpu,
             name,
             size.max(16),
-            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
+            vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_DST
+                | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
             MemoryLocation::GpuOnly,
         )?;
         Ok(Tensor {
@@ -131,6 +133,8 @@ impl Tensor {
 pub struct Conv {
     weights: Buffer,
     bias: Buffer,
+    /// The CPU-shaped kernel's packing (`pack_lanes`), when the kernels have one.
+    lanes: Option<LanesPack>,
     pub ic: u32,
     pub oc: u32,
     pub k: u32,
@@ -155,6 +159,56 @@ pub fn pack_weights(w: &[f32], oc: u32, ic: u32, k: u32) -> (Vec<f32>, u32, u32)
         }
     }
     (p, icp, blocks)
+}
+
+/// Bytes between uniform-buffer windows: 256 is a valid offset alignment on every device.
+const WINDOW_ALIGN: usize = 256;
+
+/// A layer's weights and bias in the order conv_lp_f32.comp reads them.
+struct LanesPack {
+    weights: Buffer,
+    bias: Buffer,
+    /// Bytes of one (output group, input chunk) window, and between windows.
+    window: u64,
+    stride: u64,
+}
+
+/// Packs OIHW weights for the CPU-shaped kernel: per output group of `ocn` channels and input
+/// chunk of `ci4` groups of 4 channels, one window [tap][channel of the chunk][ocn], zero
+/// where a channel does not exist, windows `WINDOW_ALIGN`-aligned, group-major. Returns the
+/// floats and the window size and stride in floats.
+pub fn pack_lanes(
+    w: &[f32],
+    oc: u32,
+    ic: u32,
+    k: u32,
+    ocn: u32,
+    ci4: u32,
+) -> (Vec<f32>, usize, usize) {
+    let (taps, cin, ocn) = ((k * k) as usize, 4 * ci4 as usize, ocn as usize);
+    let chunks = ic.div_ceil(4).div_ceil(ci4) as usize;
+    let groups = (oc as usize).div_ceil(ocn);
+    let window = taps * cin * ocn;
+    let stride = (window * 4).div_ceil(WINDOW_ALIGN) * WINDOW_ALIGN / 4;
+    let mut p = vec![0f32; groups * chunks * stride];
+    for g in 0..groups {
+        for c in 0..chunks {
+            let base = (g * chunks + c) * stride;
+            for t in 0..taps {
+                for l in 0..cin {
+                    let i = c * cin + l;
+                    for o in 0..ocn {
+                        let oo = g * ocn + o;
+                        if i < ic as usize && oo < oc as usize {
+                            p[base + (t * cin + l) * ocn + o] =
+                                w[(oo * ic as usize + i) * taps + t];
+                        }
+                    }
+                }
+            }
+        }
+    }
+    (p, window, stride)
 }
 
 impl Conv {
@@ -187,6 +241,7 @@ impl Conv {
         Ok(Conv {
             weights: wbuf,
             bias: Buffer::from_slice(gpu, "conv bias", u, &b)?,
+            lanes: None,
             ic,
             oc,
             k,
@@ -196,11 +251,15 @@ impl Conv {
         })
     }
 
+    /// Output size; 0 where the padded input is smaller than the kernel (a side of 1 pixel
+    /// into a 4×4 conv wrapped around to 2^31 before, and the network never returned).
     pub fn out_size(&self, h: u32, w: u32) -> (u32, u32) {
-        (
-            (h + 2 * self.pad - self.k) / self.stride + 1,
-            (w + 2 * self.pad - self.k) / self.stride + 1,
-        )
+        let side = |n: u32| {
+            (n + 2 * self.pad)
+                .checked_sub(self.k)
+                .map_or(0, |d| d / self.stride + 1)
+        };
+        (side(h), side(w))
     }
 
     /// Multiply-adds × 2 at an input of h × w.
@@ -253,6 +312,144 @@ struct ConvPush {
     ocb_base: u32,
 }
 
+/// Push constants of conv_lp_f32.comp (scalar layout; addresses as low, high words).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct LanesPush {
+    in_addr: [u32; 2],
+    out_addr: [u32; 2],
+    res_addr: [u32; 2],
+    in_w: u32,
+    in_h: u32,
+    in_c4: u32,
+    out_w: u32,
+    out_h: u32,
+    out_c: u32,
+    pad: u32,
+    c4: u32,
+    oc4: u32,
+    phase: u32,
+    flags: u32,
+    in_bias: f32,
+    out_bias: f32,
+    scale: f32,
+}
+
+/// The conv kernel shaped for CPU drivers (conv_lp_f32.comp): lanes are 8 output pixels, each
+/// invocation holds `ocn` output channels, and each dispatch covers `ci4` input channel groups
+/// of one output group (see the shader's header). One pipeline per (kernel size, stride).
+pub struct LanesConv {
+    pipes: Vec<((u32, u32), Pipeline)>,
+    pub ocn: u32,
+    pub ci4: u32,
+    pub rows: u32,
+}
+
+/// A device address as the shader's uvec2 (low, high).
+fn words(a: u64) -> [u32; 2] {
+    [a as u32, (a >> 32) as u32]
+}
+
+/// The CPU-shaped kernel's blocking: (output channels per invocation, input groups per
+/// dispatch, rows per invocation). Measured with `relit bench net --width 66` on lavapipe
+/// (AVX-512 host, 2 cores): (4, 2, 1) 6.9–7.5 s per inference, (8, 2, 2) 7.0, (4, 4, 2) 7.4,
+/// (4, 2, 4) 8.8, (16, 2, 1) 10.2, (16, 1, 1) 14.3; larger blocks spill. The smallest block
+/// also suits AVX2's 16 registers.
+pub const LANES_BLOCKING: (u32, u32, u32) = (4, 2, 1);
+
+/// (kernel size, stride) of the network's convolutions (§5.1): 3×3 blocks and output, 4×4/2
+/// downsampling, 1×1 heads.
+const LANES_SHAPES: [(u32, u32); 3] = [(3, 1), (4, 2), (1, 1)];
+
+impl LanesConv {
+    /// `ocn`: output channels per invocation (accumulator registers), 4, 8 or 16.
+    pub fn new(gpu: &Arc<Gpu>, ocn: u32, ci4: u32, rows: u32) -> Result<LanesConv> {
+        if ![4, 8, 16].contains(&ocn) || !(1..=8).contains(&ci4) || !(1..=8).contains(&rows) {
+            return Err(Error::Other(format!(
+                "conv_lp: {ocn} output channels per invocation, {ci4} input groups per dispatch, {rows} rows (expected 4, 8 or 16; 1 to 8; 1 to 8)"
+            )));
+        }
+        let pipes = LANES_SHAPES
+            .iter()
+            .map(|&(k, s)| {
+                Pipeline::compute_specialized(gpu, "net/conv_lp_f32.comp", &[k, s, ocn, ci4, rows])
+                    .map(|p| ((k, s), p))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(LanesConv {
+            pipes,
+            ocn,
+            ci4,
+            rows,
+        })
+    }
+
+    /// Records the dispatches of `out = epilogue(conv(input))`, with barriers between the
+    /// input chunks (the partial sums live in `out`).
+    fn record(
+        &self,
+        gpu: &Arc<Gpu>,
+        cmd: vk::CommandBuffer,
+        layer: &Conv,
+        input: &Tensor,
+        out: &Tensor,
+        ep: Epilogue,
+    ) -> Result<()> {
+        let Some((_, pipe)) = self
+            .pipes
+            .iter()
+            .find(|(ks, _)| *ks == (layer.k, layer.stride))
+        else {
+            return Err(Error::Other(format!(
+                "conv_lp: no kernel for {0}×{0} stride {1}",
+                layer.k, layer.stride
+            )));
+        };
+        let Some(pack) = &layer.lanes else {
+            return Err(Error::Other(
+                "conv_lp: the layer was not packed for these kernels (NetKernels::layer)".into(),
+            ));
+        };
+        let grid = (out.w.div_ceil(8), out.h.div_ceil(4 * self.rows), 1);
+        let groups = layer.oc.div_ceil(self.ocn);
+        let chunks = input.c4().div_ceil(self.ci4);
+        let bias_window = self.ocn as u64 * 4;
+        for chunk in 0..chunks {
+            let c4 = chunk * self.ci4;
+            for g in 0..groups {
+                let window = (g * chunks + chunk) as u64 * pack.stride;
+                let bias_at = g as u64 * WINDOW_ALIGN as u64;
+                let binds = [
+                    (0, Bind::BufferRange(&pack.weights, window, pack.window)),
+                    (1, Bind::BufferRange(&pack.bias, bias_at, bias_window)),
+                ];
+                let push = LanesPush {
+                    in_addr: words(input.buf.address),
+                    out_addr: words(out.buf.address),
+                    res_addr: words(ep.residual.map_or(0, |r| r.buf.address)),
+                    in_w: input.w,
+                    in_h: input.h,
+                    in_c4: input.c4(),
+                    out_w: out.w,
+                    out_h: out.h,
+                    out_c: layer.oc,
+                    pad: layer.pad,
+                    c4,
+                    oc4: g * self.ocn / 4,
+                    phase: u32::from(chunk == 0) | if chunk + 1 == chunks { 2 } else { 0 },
+                    flags: u32::from(ep.relu) | if ep.residual.is_some() { 2 } else { 0 },
+                    in_bias: ep.in_bias,
+                    out_bias: ep.out_bias,
+                    scale: ep.scale,
+                };
+                pipe.dispatch_groups(cmd, &binds, bytes_of(&push), grid)?;
+            }
+            full_barrier(gpu, cmd);
+        }
+        Ok(())
+    }
+}
+
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct UpPush {
@@ -268,6 +465,8 @@ pub struct NetKernels {
     pub backend: Backend,
     pub storage: Storage,
     conv: Pipeline,
+    /// The CPU-shaped conv, when `backend` is `Backend::CpuLanes`.
+    lanes: Option<LanesConv>,
     /// Portable only: the kernel for a last block with at most 4 real channels.
     conv_rem: Option<Pipeline>,
     up: Pipeline,
@@ -279,19 +478,77 @@ impl NetKernels {
     pub fn new(gpu: &Arc<Gpu>, storage: Storage) -> Result<NetKernels> {
         let backend = match storage {
             Storage::F16 => select_backend(&gpu.caps),
+            Storage::F32 if gpu.caps.device_type == vk::PhysicalDeviceType::CPU => {
+                Backend::CpuLanes
+            }
             Storage::F32 => Backend::Portable,
         };
         NetKernels::with_backend(gpu, storage, backend)
+    }
+
+    /// A convolution layer (OIHW `weights`) packed for these kernels.
+    #[allow(clippy::too_many_arguments)]
+    pub fn layer(
+        &self,
+        weights: &[f32],
+        bias: Option<&[f32]>,
+        oc: u32,
+        ic: u32,
+        k: u32,
+        stride: u32,
+        pad: u32,
+    ) -> Result<Conv> {
+        let mut c = Conv::new(
+            &self.gpu,
+            self.storage,
+            weights,
+            bias,
+            oc,
+            ic,
+            k,
+            stride,
+            pad,
+        )?;
+        if let Some(l) = &self.lanes {
+            let (w, window, wstride) = pack_lanes(weights, oc, ic, k, l.ocn, l.ci4);
+            // One window of `ocn` biases per output group.
+            let bstride = WINDOW_ALIGN / 4;
+            let mut b = vec![0f32; oc.div_ceil(l.ocn) as usize * bstride];
+            for (o, v) in bias.unwrap_or(&[]).iter().enumerate() {
+                b[o / l.ocn as usize * bstride + o % l.ocn as usize] = *v;
+            }
+            let u = vk::BufferUsageFlags::UNIFORM_BUFFER;
+            c.lanes = Some(LanesPack {
+                weights: Buffer::from_slice(&self.gpu, "conv weights (lanes)", u, &w)?,
+                bias: Buffer::from_slice(&self.gpu, "conv bias (lanes)", u, &b)?,
+                window: window as u64 * 4,
+                stride: wstride as u64 * 4,
+            });
+        }
+        Ok(c)
+    }
+
+    /// The CPU-shaped kernels with an explicit blocking (`LanesConv::new`), fp32 storage.
+    pub fn with_lanes(gpu: &Arc<Gpu>, ocn: u32, ci4: u32, rows: u32) -> Result<NetKernels> {
+        let mut k = NetKernels::with_backend(gpu, Storage::F32, Backend::Portable)?;
+        k.lanes = Some(LanesConv::new(gpu, ocn, ci4, rows)?);
+        k.backend = Backend::CpuLanes;
+        Ok(k)
     }
 
     pub fn with_backend(gpu: &Arc<Gpu>, storage: Storage, backend: Backend) -> Result<NetKernels> {
         let conv = match (storage, backend) {
             (Storage::F16, Backend::CoopMatrix) => "net/conv_cm.comp",
             (Storage::F16, Backend::Portable) => "net/conv.comp",
-            (Storage::F32, Backend::Portable) => "net/conv_f32.comp",
+            (Storage::F32, Backend::Portable | Backend::CpuLanes) => "net/conv_f32.comp",
             (Storage::F32, Backend::CoopMatrix) => {
                 return Err(Error::Other(
                     "the cooperative-matrix kernels need fp16 storage".into(),
+                ))
+            }
+            (Storage::F16, Backend::CpuLanes) => {
+                return Err(Error::Other(
+                    "the CPU-shaped kernels need fp32 storage".into(),
                 ))
             }
         };
@@ -306,10 +563,20 @@ impl NetKernels {
             }
             _ => None,
         };
+        let lanes = match backend {
+            Backend::CpuLanes => Some(LanesConv::new(
+                gpu,
+                LANES_BLOCKING.0,
+                LANES_BLOCKING.1,
+                LANES_BLOCKING.2,
+            )?),
+            _ => None,
+        };
         Ok(NetKernels {
             backend,
             storage,
             conv: Pipeline::compute(gpu, conv)?,
+            lanes,
             conv_rem,
             up: Pipeline::compute(gpu, up)?,
             gpu: gpu.clone(),
@@ -369,6 +636,9 @@ impl NetKernels {
             (3, Bind::Buffer(&res.buf)),
             (4, Bind::Buffer(&out.buf)),
         ];
+        if let Some(lanes) = &self.lanes {
+            return lanes.record(&self.gpu, cmd, layer, input, out, ep);
+        }
         let (full, rem) = (layer.oc / OCB, layer.oc % OCB);
         match (&self.conv_rem, self.backend) {
             // A last block with ≤ 4 real channels: the remainder kernel does 1/4 of a block.
@@ -384,7 +654,7 @@ impl NetKernels {
                 };
                 r.dispatch_groups(cmd, &binds, bytes_of(&push), grid(1))?;
             }
-            (_, Backend::Portable) => {
+            (_, Backend::Portable | Backend::CpuLanes) => {
                 let grid = (ow.div_ceil(PX * 8), oh.div_ceil(8), layer.oc.div_ceil(OCB));
                 self.conv
                     .dispatch_groups(cmd, &binds, bytes_of(&push), grid)?;

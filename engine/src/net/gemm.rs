@@ -32,7 +32,7 @@ impl Gemm {
     pub fn with_backend(gpu: &Arc<Gpu>, backend: Backend) -> Result<Gemm> {
         let name = match backend {
             Backend::CoopMatrix => "net/gemm_cm.comp",
-            Backend::Portable => "net/gemm.comp",
+            Backend::Portable | Backend::CpuLanes => "net/gemm.comp",
         };
         Ok(Gemm {
             backend,

@@ -7,8 +7,8 @@ mod gemm;
 mod model;
 
 pub use conv::{
-    conv_reference, pack_weights, upsample_add_reference, Conv, Epilogue, NetKernels, Storage,
-    Tensor, OCB,
+    conv_reference, pack_weights, upsample_add_reference, Conv, Epilogue, LanesConv, NetKernels,
+    Storage, Tensor, OCB,
 };
 pub use gemm::Gemm;
 pub use model::{NetBuffers, NetConfig, Network, Params, RandomParams, SafetensorsParams};
@@ -23,6 +23,9 @@ pub const INPUT_CHANNELS: u32 = 66;
 pub enum Backend {
     CoopMatrix,
     Portable,
+    /// Kernels shaped for CPU drivers (llvmpipe): lanes are output pixels, weights at uniform
+    /// addresses (conv_lp_f32.comp). Chosen on CPU devices with fp32 storage.
+    CpuLanes,
 }
 
 /// The backend for kernels written for 16×16×16 fp16 tiles with fp32 accumulators at subgroup

@@ -63,7 +63,7 @@ pub struct SafetensorsParams {
 
 impl SafetensorsParams {
     pub fn open(path: &Path) -> Result<(SafetensorsParams, NetConfig)> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::scene::files::read(path, crate::scene::files::FileKind::Weights)?;
         let (_, meta) = safetensors::SafeTensors::read_metadata(&bytes)
             .map_err(|e| Error::input(path, format!("not a safetensors file: {e}")))?;
         let cfg = meta
@@ -164,8 +164,6 @@ impl Network {
     }
 
     pub fn from_params(kernels: NetKernels, config: NetConfig, p: &dyn Params) -> Result<Network> {
-        let gpu = kernels.gpu.clone();
-        let st = kernels.storage;
         let w = config.width as usize;
         let conv = |name: &str, oc: usize, ic: usize, k: usize, stride: u32, bias: bool| {
             let wt = p.get(&format!("{name}.weight"), &[oc, ic, k, k])?;
@@ -174,17 +172,7 @@ impl Network {
             } else {
                 None
             };
-            Conv::new(
-                &gpu,
-                st,
-                &wt,
-                b.as_deref(),
-                oc as u32,
-                ic as u32,
-                k as u32,
-                stride,
-                1,
-            )
+            kernels.layer(&wt, b.as_deref(), oc as u32, ic as u32, k as u32, stride, 1)
         };
         let scalar = |name: String| -> Result<f32> { Ok(p.get(&name, &[1])?[0]) };
         let blocks = |prefix: &str, n: u32| -> Result<Vec<Block>> {

@@ -63,6 +63,7 @@ pub fn image_size(path: &Path) -> Result<(u32, u32)> {
     if !path.exists() {
         return Err(Error::input(path, "image file does not exist"));
     }
+    super::files::check(path, super::files::FileKind::Image)?;
     if is_exr(path) {
         let meta = exr::meta::MetaData::read_from_file(path, false)
             .map_err(|e| Error::input(path, format!("unreadable EXR header: {e}")))?;

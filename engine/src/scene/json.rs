@@ -190,7 +190,7 @@ impl CameraDoc {
             }
             (None, None) => return Err(bad("missing field \"rotation\" (or \"look_at\")")),
         };
-        Ok(Camera {
+        let cam = Camera {
             width: self.width,
             height: self.height,
             fx: self.fx,
@@ -199,7 +199,10 @@ impl CameraDoc {
             cy: self.cy,
             rotation,
             translation: -(rotation * position),
-        })
+        };
+        // Every way a camera enters (scene.json, test views, `--camera FILE`) is checked alike.
+        cam.validate().map_err(|m| bad(&m))?;
+        Ok(cam)
     }
 
     pub fn from_camera(c: &Camera) -> CameraDoc {
@@ -402,7 +405,7 @@ pub fn write(dir: &Path, scene: &Scene) -> Result<()> {
 /// (rewriting the cameras would round their numbers and change the bake's key).
 pub fn write_lights(dir: &Path, lights: &[Light], presets: &[LightingPreset]) -> Result<()> {
     let path = dir.join(SCENE_FILE);
-    let text = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+    let text = super::files::read(&path, super::files::FileKind::Text)?;
     let mut doc: serde_json::Value =
         serde_json::from_slice(&text).map_err(|e| Error::input(&path, e.to_string()))?;
     let Some(obj) = doc.as_object_mut() else {

@@ -136,7 +136,7 @@ impl Mesh {
 
 fn load_obj(path: &Path) -> Result<Mesh> {
     // tobj re-indexes without bounds checks in some paths, so check face indices first.
-    let text = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let text = super::files::read(path, super::files::FileKind::Mesh)?;
     let text = String::from_utf8_lossy(&text);
     let mut nv: i64 = 0;
     for (ln, line) in text.lines().enumerate() {
@@ -281,7 +281,7 @@ impl PlyReader<'_> {
 }
 
 fn load_ply(path: &Path) -> Result<Mesh> {
-    let data = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let data = super::files::read(path, super::files::FileKind::Mesh)?;
     let bad = |m: String| Error::input(path, m);
     let end = data
         .windows(10)

@@ -5,6 +5,7 @@
 pub mod camera;
 mod colmap;
 pub mod coverage;
+pub mod files;
 pub mod image;
 mod json;
 pub mod mesh;
@@ -418,7 +419,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// Reads a text file, naming it in the error.
 pub(crate) fn read_text(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = files::read(path, files::FileKind::Text)?;
     String::from_utf8(bytes).map_err(|_| Error::input(path, "file is not valid UTF-8 text"))
 }
 
