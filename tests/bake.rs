@@ -32,6 +32,16 @@ fn tiny(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>) -> (Tiny, RayScene) {
     (Tiny { mesh, data }, rs)
 }
 
+/// The test room's lights, the ceiling quad first. It emits upwards (edge_u × edge_v = +Y);
+/// swapped edges make it face the room, so its next-event estimation is exercised.
+fn ceiling_light_facing_the_room() -> Vec<relit_engine::scene::Light> {
+    let (mut lights, _) = synth::room_lights();
+    if let relit_engine::scene::LightShape::Quad { edge_u, edge_v, .. } = &mut lights[0].shape {
+        std::mem::swap(edge_u, edge_v);
+    }
+    lights
+}
+
 /// The tiny scene's radiance mesh, completed with the CPU references, and on the device.
 fn radiance(
     gpu: &std::sync::Arc<relit_engine::gpu::Gpu>,
@@ -82,12 +92,7 @@ fn source_irradiance_matches_cpu_reference() {
     let views = GpuViews::upload(&gpu, &t.data).unwrap();
     // Without declared lights (views only) and with the ceiling light declared (its direct part
     // by next-event estimation).
-    // The procedural room's ceiling quad emits upwards (edge_u × edge_v = +Y); swapped edges
-    // make it face the room, so its next-event estimation is exercised.
-    let (mut lights, _) = synth::room_lights();
-    if let relit_engine::scene::LightShape::Quad { edge_u, edge_v, .. } = &mut lights[0].shape {
-        std::mem::swap(edge_u, edge_v);
-    }
+    let lights = ceiling_light_facing_the_room();
     for declared in [&lights[..0], &lights[..1]] {
         let pass = SourceIrradiance::new(&gpu, declared).unwrap();
         let gl = source_irradiance::original_lights(declared);
@@ -165,10 +170,7 @@ fn radiance_mesh_matches_cpu_reference_and_completes_unseen_vertices() {
     let (t, rs) = tiny(&gpu);
     let views = GpuViews::upload(&gpu, &t.data).unwrap();
     // With the ceiling light declared, its pixels and their neighbours are left out.
-    let (mut lights, _) = synth::room_lights();
-    if let relit_engine::scene::LightShape::Quad { edge_u, edge_v, .. } = &mut lights[0].shape {
-        std::mem::swap(edge_u, edge_v);
-    }
+    let lights = ceiling_light_facing_the_room();
     let gl = source_irradiance::original_lights(&lights[..1]);
     let g = RadianceMesh::new(&gpu, &lights[..1])
         .unwrap()

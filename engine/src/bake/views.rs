@@ -156,20 +156,7 @@ pub fn run_pixels(
     views: &GpuViews,
     record: impl FnOnce(vk::CommandBuffer, &Buffer) -> Result<()>,
 ) -> Result<Vec<[f32; 4]>> {
-    let n = (views.width * views.height) as u64;
-    let out = Buffer::new(
-        gpu,
-        "pass out",
-        n * 16,
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-        crate::gpu::MemoryLocation::GpuOnly,
-    )?;
-    let mut res = Ok(());
-    gpu.submit(|cmd| res = record(cmd, &out))?;
-    res?;
-    let mut v: Vec<[f32; 4]> = out.download_vec()?;
-    v.truncate(n as usize);
-    Ok(v)
+    run_items(gpu, views.width * views.height, record)
 }
 
 /// Runs a pass that writes one vec4 per mesh vertex into `out` and reads it back.
@@ -178,10 +165,19 @@ pub fn run_vertices(
     nverts: u32,
     record: impl FnOnce(vk::CommandBuffer, &Buffer) -> Result<()>,
 ) -> Result<Vec<[f32; 4]>> {
+    run_items(gpu, nverts, record)
+}
+
+/// Runs a pass that writes `n` vec4s into `out` and reads them back.
+fn run_items(
+    gpu: &Arc<Gpu>,
+    n: u32,
+    record: impl FnOnce(vk::CommandBuffer, &Buffer) -> Result<()>,
+) -> Result<Vec<[f32; 4]>> {
     let out = Buffer::new(
         gpu,
-        "vertex pass out",
-        nverts.max(1) as u64 * 16,
+        "pass out",
+        n.max(1) as u64 * 16,
         vk::BufferUsageFlags::STORAGE_BUFFER,
         crate::gpu::MemoryLocation::GpuOnly,
     )?;
@@ -189,7 +185,7 @@ pub fn run_vertices(
     gpu.submit(|cmd| res = record(cmd, &out))?;
     res?;
     let mut v: Vec<[f32; 4]> = out.download_vec()?;
-    v.truncate(nverts as usize);
+    v.truncate(n as usize);
     Ok(v)
 }
 
