@@ -111,19 +111,10 @@ fn bench_rays_runs_on_a_tiny_batch() {
 /// block forever, /dev/zero to eat all memory).
 #[test]
 fn special_files_are_refused_without_reading_them() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/demo_room");
-    let dir = common::tempdir("cli-special-files");
-    let doc: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(src.join("scene.json")).unwrap()).unwrap();
-    let mesh = doc["mesh"].as_str().unwrap().to_string();
-    std::fs::write(dir.join("scene.json"), serde_json::to_vec(&doc).unwrap()).unwrap();
-    // Everything else of the bundled scene, linked.
-    for e in std::fs::read_dir(&src).unwrap() {
-        let e = e.unwrap().file_name();
-        if e != "scene.json" && e != mesh.as_str() && e != ".relit" {
-            std::os::unix::fs::symlink(src.join(&e), dir.join(&e)).unwrap();
-        }
-    }
+    let mut mesh = String::new();
+    let dir = demo_with("cli-special-files", |d| {
+        mesh = d["mesh"].as_str().unwrap().into()
+    });
     for (name, make) in [("FIFO", "fifo"), ("character device", "zero")] {
         let _ = std::fs::remove_file(dir.join(&mesh));
         if make == "fifo" {
@@ -223,6 +214,117 @@ fn camera_files_are_validated_like_scene_cameras() {
             f.to_str().unwrap(),
             "--out",
             dir.join("x.png").to_str().unwrap(),
+        ]);
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(
+            err.contains(&format!("{name}.json")) && err.contains(want),
+            "{name}: {err}"
+        );
+    }
+}
+
+/// The bundled scene in a temp dir with scene.json passed through `edit` (everything else
+/// linked).
+fn demo_with(name: &str, edit: impl FnOnce(&mut serde_json::Value)) -> std::path::PathBuf {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/demo_room");
+    let dir = common::tempdir(name);
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(src.join("scene.json")).unwrap()).unwrap();
+    edit(&mut doc);
+    std::fs::write(dir.join("scene.json"), serde_json::to_vec(&doc).unwrap()).unwrap();
+    for e in std::fs::read_dir(&src).unwrap() {
+        let e = e.unwrap().file_name();
+        if e != "scene.json" && e != ".relit" {
+            std::os::unix::fs::symlink(src.join(&e), dir.join(&e)).unwrap();
+        }
+    }
+    dir
+}
+
+/// Lights with a duplicate name, a negative radius, a zero normal or parallel edges fail
+/// `scene check`, naming the light and the field.
+#[test]
+fn bad_lights_are_refused_by_name_and_field() {
+    let disk = |name: &str, normal: [f32; 3], radius: f32| {
+        serde_json::json!({ "shape": "disk", "name": name, "center": [0.0, 1.0, 0.0],
+            "normal": normal, "radius": radius, "radiance": [5.0, 5.0, 5.0] })
+    };
+    let cases: [(&str, serde_json::Value, &str); 4] = [
+        (
+            "dup",
+            disk("ceiling0", [0.0, -1.0, 0.0], 0.1),
+            "ceiling0 appears twice",
+        ),
+        ("negr", disk("lamp", [0.0, -1.0, 0.0], -0.1), "radius -0.1"),
+        (
+            "zeron",
+            disk("lamp", [0.0, 0.0, 0.0], 0.1),
+            "normal is zero",
+        ),
+        (
+            "flat",
+            serde_json::json!({ "shape": "quad", "name": "lamp", "corner": [0.0, 1.0, 0.0],
+                "edge_u": [0.2, 0.0, 0.0], "edge_v": [0.4, 0.0, 0.0], "radiance": [5.0, 5.0, 5.0] }),
+            "span no area",
+        ),
+    ];
+    for (name, light, want) in cases {
+        let dir = demo_with(&format!("cli-light-{name}"), |d| {
+            d["lights"].as_array_mut().unwrap().push(light)
+        });
+        let (code, _, err) = relit(&["scene", "check", dir.to_str().unwrap()]);
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(
+            err.contains("scene.json") && err.contains(want),
+            "{name}: {err}"
+        );
+    }
+}
+
+/// Path keyframes with an infinite look_at, a look_at straight above, a skewed rotation or a
+/// negative intensity are refused before anything renders.
+#[test]
+fn bad_path_keyframes_are_refused() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/demo_room");
+    let dir = common::tempdir("cli-bad-paths");
+    let key = |t: f64, look: serde_json::Value| serde_json::json!({ "time": t, "position": [0.0, 1.5, 0.0], "look_at": look, "fov_deg": 60.0 });
+    let ok = serde_json::json!([1.0, 1.0, 1.0]);
+    let cases: [(&str, serde_json::Value, &str); 4] = [
+        (
+            "inf",
+            serde_json::json!({ "keyframes": [key(0.0, serde_json::json!([1e39, 1.0, 1.0])), key(1.0, ok.clone())] }),
+            "look_at must be finite",
+        ),
+        (
+            "up",
+            serde_json::json!({ "keyframes": [key(0.0, serde_json::json!([0.0, 3.0, 0.0])), key(1.0, ok.clone())] }),
+            "straight above or below",
+        ),
+        (
+            "skew",
+            serde_json::json!({ "keyframes": [
+                { "time": 0.0, "position": [0.0, 1.5, 0.0], "rotation": [[1.0, 0.3, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], "fov_deg": 60.0 },
+                { "time": 1.0, "position": [0.0, 1.5, 0.0], "rotation": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], "fov_deg": 60.0 }] }),
+            "rotation must be a rotation matrix",
+        ),
+        (
+            "negk",
+            serde_json::json!({ "keyframes": [key(0.0, ok.clone()), key(1.0, ok.clone())],
+                "lighting": [{ "time": 0.0, "dim": 0.0, "intensities": { "extra0": -1.0 } }] }),
+            "intensities.extra0 = -1",
+        ),
+    ];
+    for (name, mut doc, want) in cases {
+        doc["interpolation"] = serde_json::json!("linear");
+        let f = dir.join(format!("{name}.json"));
+        std::fs::write(&f, serde_json::to_vec(&doc).unwrap()).unwrap();
+        let (code, _, err) = relit(&[
+            "fly",
+            scene.to_str().unwrap(),
+            "--path",
+            f.to_str().unwrap(),
+            "--out",
+            dir.join(name).to_str().unwrap(),
         ]);
         assert_eq!(code, 1, "{name}: {err}");
         assert!(

@@ -378,6 +378,28 @@ fn malformed_inputs_get_clear_errors() {
     expect_error(&d, "images.txt", "does not define");
     cases += 1;
 
+    // 18a. An OBJ face with two vertices (it was dropped without a word).
+    let d = room("bad-obj-face", SceneFormat::Relit);
+    let obj = d.join("two.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2\n").unwrap();
+    let e = relit_engine::scene::Mesh::load(&obj)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("two.obj") && e.contains("line 5") && e.contains("found 2"),
+        "{e}"
+    );
+    cases += 1;
+
+    // 18b. COLMAP images.txt without its POINTS2D lines (half the views were lost silently).
+    let d = room("bad-colmap-points", SceneFormat::Colmap);
+    let imgs = d.join("sparse/0/images.txt");
+    let s = std::fs::read_to_string(&imgs).unwrap();
+    let kept: Vec<&str> = s.lines().filter(|l| !l.trim().is_empty()).collect();
+    std::fs::write(&imgs, kept.join("\n") + "\n").unwrap();
+    expect_error(&d, "images.txt", "POINTS2D line belongs");
+    cases += 1;
+
     // 19. SIBR: image count ≠ camera count.
     let d = room("bad-sibr-count", SceneFormat::Sibr);
     edit(&d.join("cameras/bundle.out"), "\n4 0\n", "\n5 0\n");

@@ -149,6 +149,21 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
             continue;
         }
         let ln = i + 1;
+        // The POINTS2D line: (X, Y, POINT3D_ID) triples of numbers, possibly none. A line that
+        // reads as another image's (10 fields, a name last) means the file has no POINTS2D
+        // lines, and skipping it would silently lose every other view.
+        if let Some((j, next)) = lines.get(k) {
+            let f: Vec<&str> = next.split_whitespace().collect();
+            if f.len() == 10 && f[9].parse::<f64>().is_err() {
+                return Err(Error::input(
+                    &img_file,
+                    format!(
+                        "line {}: an image line where line {ln}'s POINTS2D line belongs (COLMAP writes one after each image, empty when it has no points)",
+                        j + 1
+                    ),
+                ));
+            }
+        }
         k += 1; // skip the POINTS2D line
         let mut t = line.split_whitespace();
         let _id: u32 = num(&img_file, ln, "IMAGE_ID", t.next())?;

@@ -144,7 +144,18 @@ fn load_obj(path: &Path) -> Result<Mesh> {
         match it.next() {
             Some("v") => nv += 1,
             Some("f") => {
-                for tok in it {
+                let toks: Vec<&str> = it.collect();
+                if toks.len() < 3 {
+                    return Err(Error::input(
+                        path,
+                        format!(
+                            "line {}: a face needs at least 3 vertices, found {}",
+                            ln + 1,
+                            toks.len()
+                        ),
+                    ));
+                }
+                for tok in toks {
                     let idx = tok.split('/').next().unwrap_or("");
                     let v: i64 = idx.parse().map_err(|_| {
                         Error::input(

@@ -76,6 +76,49 @@ pub enum LightShape {
 }
 
 impl LightShape {
+    /// What is wrong with the shape's numbers, if anything: positions and edges finite, a quad
+    /// of non-zero area, a disk with a positive finite radius and a non-zero normal.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let finite = |n: &str, v: Vec3| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("{n} {v} must be finite"))
+            }
+        };
+        match self {
+            LightShape::Quad {
+                corner,
+                edge_u,
+                edge_v,
+            } => {
+                finite("corner", *corner)?;
+                finite("edge_u", *edge_u)?;
+                finite("edge_v", *edge_v)?;
+                if edge_u.cross(*edge_v).length() <= 1e-12 {
+                    return Err("edge_u and edge_v span no area (zero or parallel)".into());
+                }
+            }
+            LightShape::Disk {
+                center,
+                normal,
+                radius,
+            } => {
+                finite("center", *center)?;
+                finite("normal", *normal)?;
+                if normal.length() <= 1e-12 {
+                    return Err("normal is zero; expected the direction the disk emits to".into());
+                }
+                if !(radius.is_finite() && *radius > 0.0) {
+                    return Err(format!(
+                        "radius {radius}; expected a positive finite number"
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
     pub fn area(&self) -> f32 {
         match self {
             LightShape::Quad { edge_u, edge_v, .. } => edge_u.cross(*edge_v).length(),
@@ -303,9 +346,20 @@ impl Scene {
                     ),
                 ));
             }
-            let area = l.shape.area();
-            if area.is_nan() || area <= 0.0 {
-                return Err(Error::input(file, format!("light {}: zero area", l.name)));
+            l.shape
+                .check()
+                .map_err(|m| Error::input(file, format!("light {}: {m}", l.name)))?;
+        }
+        let mut light_names = std::collections::HashSet::new();
+        for l in &self.lights {
+            if !light_names.insert(&l.name) {
+                return Err(Error::input(
+                    file,
+                    format!(
+                        "light name {} appears twice (presets and paths name lights)",
+                        l.name
+                    ),
+                ));
             }
         }
         if let Some(syn) = &self.synthetic {

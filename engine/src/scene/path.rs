@@ -138,14 +138,28 @@ impl CameraPath {
             }
             let rotation = match (&k.look_at, &k.rotation) {
                 (Some(l), None) => {
-                    if (Vec3::from(*l) - position).length() < 1e-6 {
+                    let d = Vec3::from(*l) - position;
+                    if !d.is_finite() {
+                        return Err(at("look_at must be finite"));
+                    }
+                    if d.length() < 1e-6 {
                         return Err(at("look_at equals position"));
+                    }
+                    // The camera's up is +Y: a view straight up or down has no horizon.
+                    if d.normalize().cross(Vec3::Y).length() < 1e-4 {
+                        return Err(at(
+                            "look_at is straight above or below position (the up direction is +Y)",
+                        ));
                     }
                     None
                 }
                 (None, Some(r)) => {
                     let m = Mat3::from_cols(r[0].into(), r[1].into(), r[2].into());
-                    if (m.determinant() - 1.0).abs() > 1e-3 {
+                    let off = (m * m.transpose() - Mat3::IDENTITY)
+                        .to_cols_array()
+                        .iter()
+                        .fold(0f32, |a, v| a.max(v.abs()));
+                    if off.is_nan() || off > 1e-3 || (m.determinant() - 1.0).abs() > 1e-3 {
                         return Err(at(
                             "rotation must be a rotation matrix (rows: right, down, forward)",
                         ));
@@ -177,6 +191,13 @@ impl CameraPath {
             }
             if !(0.0..=1.0).contains(&l.dim) {
                 return Err(bad(format!("lighting[{i}]: dim must be in [0, 1]")));
+            }
+            for (name, k) in &l.intensities {
+                if !(k.is_finite() && *k >= 0.0) {
+                    return Err(bad(format!(
+                        "lighting[{i}]: intensities.{name} = {k}; expected a finite number >= 0"
+                    )));
+                }
             }
             for (name, d) in &l.moves {
                 if !Vec3::from(*d).is_finite() {
