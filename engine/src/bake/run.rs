@@ -449,11 +449,13 @@ pub fn bake(
         .clone()
         .filter(|&i| !esrc_file(&cache, &scene.views[i].name).exists())
         .collect();
-    let (t0, mut rays) = (Instant::now(), 0u64);
+    // Declared original lights add one shadow ray per sample.
+    let per_sample = 1 + scene.lights.iter().any(|l| l.original) as u64;
     let radiance = if todo.is_empty() {
         None
     } else {
-        Some(super::radiance_mesh::build(
+        let t0 = Instant::now();
+        let r = super::radiance_mesh::build(
             gpu,
             &si,
             &scene.lights,
@@ -462,13 +464,16 @@ pub fn bake(
             &views,
             p.irradiance_samples,
             p.seed,
-        )?)
+        )?;
+        let nv = geom.positions.len();
+        let rays = nv as u64 * p.irradiance_samples as u64 * per_sample;
+        report
+            .stages
+            .push(("radiance mesh".into(), t0.elapsed().as_secs_f64(), rays, nv));
+        progress.update("radiance mesh", 1, 1, rays);
+        Some(r)
     };
-    // Declared original lights add one shadow ray per sample.
-    let per_sample = 1 + scene.lights.iter().any(|l| l.original) as u64;
-    if radiance.is_some() {
-        rays += geom.positions.len() as u64 * p.irradiance_samples as u64 * per_sample;
-    }
+    let (t0, mut rays) = (Instant::now(), 0u64);
     for (k, &i) in todo.iter().enumerate() {
         let Some(radiance) = radiance.as_ref() else {
             break;

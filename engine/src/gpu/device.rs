@@ -93,6 +93,8 @@ pub struct Caps {
     pub required: Vec<(&'static str, bool)>,
     pub bc_compression: bool,
     pub bc6h_sampled_linear: bool,
+    /// The `vulkanMemoryModel` feature: the cooperative-matrix modules declare its capability.
+    pub vulkan_memory_model: bool,
     pub coop_matrix: Vec<CoopMatrixShape>,
     pub subgroup_size: u32,
     pub timestamp_period_ns: f32,
@@ -335,6 +337,7 @@ fn query_caps(
             required,
             bc_compression,
             bc6h_sampled_linear,
+            vulkan_memory_model: f12.vulkan_memory_model == vk::TRUE,
             coop_matrix,
             subgroup_size: p11.subgroup_size,
             timestamp_period_ns: limits.timestamp_period,
@@ -540,7 +543,8 @@ impl Gpu {
             .buffer_device_address(true)
             .shader_float16(true)
             .scalar_block_layout(true)
-            .host_query_reset(true);
+            .host_query_reset(true)
+            .vulkan_memory_model(caps.vulkan_memory_model);
         let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
             .synchronization2(true)
             .dynamic_rendering(true);
