@@ -211,6 +211,20 @@ fn malformed_inputs_get_clear_errors() {
     expect_error(&d, "001.exr", "EXR");
     cases += 1;
 
+    // 1b. A truncated JPEG (the decoder filled the missing rows with grey without a word).
+    let d = common::tempdir("bad-jpeg-trunc");
+    let f = d.join("cut.jpg");
+    let img = image::RgbImage::from_fn(64, 48, |x, y| {
+        image::Rgb([(x * 4) as u8, (y * 5) as u8, 90])
+    });
+    img.save(&f).unwrap();
+    assert!(load_rgb(&f).is_ok(), "the whole JPEG loads");
+    let bytes = std::fs::read(&f).unwrap();
+    std::fs::write(&f, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let e = load_rgb(&f).unwrap_err().to_string();
+    assert!(e.contains("cut.jpg") && e.contains("truncated"), "{e}");
+    cases += 1;
+
     // 2-3. NaN and Inf pixels.
     for (k, v) in [("nan", f32::NAN), ("inf", f32::INFINITY)] {
         let d = room(&format!("bad-exr-{k}"), j);
@@ -341,6 +355,24 @@ fn malformed_inputs_get_clear_errors() {
     )
     .unwrap();
     expect_error(&d, "mesh.ply", "references vertex 7");
+    cases += 1;
+
+    // 15b. A PLY whose declared face count does not match its data (the ASCII faces are
+    // triangles, but the header says the vertex list has one element more than it does): the
+    // message says the header and the data disagree, not only "face 1 has 0 vertices".
+    let d = room("bad-ply-list", j);
+    std::fs::write(
+        d.join("mesh.ply"),
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+         element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n\
+         3 0 1 2\n0 0 1\n",
+    )
+    .unwrap();
+    expect_error(
+        &d,
+        "mesh.ply",
+        "header's counts or property types do not match the data",
+    );
     cases += 1;
 
     // 16. Big-endian PLY.

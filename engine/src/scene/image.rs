@@ -93,6 +93,23 @@ fn is_exr(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
 }
 
+/// A JPEG must end with its end-of-image marker (FF D9; a few bytes of padding after it are
+/// allowed): the decoder fills a truncated file's missing rows with grey without a word.
+fn check_jpeg_end(path: &Path, data: &[u8]) -> Result<()> {
+    if !data.starts_with(&[0xFF, 0xD8]) {
+        return Ok(());
+    }
+    let tail = &data[data.len().saturating_sub(4096)..];
+    if tail.windows(2).any(|w| w == [0xFF, 0xD9]) {
+        Ok(())
+    } else {
+        Err(Error::input(
+            path,
+            "JPEG has no end-of-image marker: the file is truncated",
+        ))
+    }
+}
+
 /// Loads an image as linear RGB. Refuses non-finite or negative-infinite pixels, naming the first.
 pub fn load_rgb(path: &Path) -> Result<RgbImage> {
     let (w, h) = image_size(path)?;
@@ -118,8 +135,9 @@ pub fn load_rgb(path: &Path) -> Result<RgbImage> {
             })?;
         image.layer_data.channel_data.pixels
     } else {
-        let mut reader = image::ImageReader::open(path)
-            .map_err(|e| Error::io(path, e))?
+        let data = super::files::read(path, super::files::FileKind::Image)?;
+        check_jpeg_end(path, &data)?;
+        let mut reader = image::ImageReader::new(std::io::Cursor::new(data))
             .with_guessed_format()
             .map_err(|e| Error::io(path, e))?;
         let mut limits = image::Limits::default();

@@ -376,6 +376,14 @@ fn load_ply(path: &Path) -> Result<Mesh> {
             body.len()
         )));
     }
+    let declared = elements
+        .iter()
+        .map(|e| {
+            let props: Vec<&str> = e.props.iter().map(|p| p.name.as_str()).collect();
+            format!("{} {} ({})", e.count, e.name, props.join(" "))
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
     let mut mesh = Mesh::default();
     for e in &elements {
         let idx = |n: &str| e.props.iter().position(|p| p.name == n);
@@ -410,7 +418,9 @@ fn load_ply(path: &Path) -> Result<Mesh> {
                     if is_face && Some(pi) == fi {
                         if n < 3 {
                             return Err(bad(format!(
-                                "face {i} has {n} vertices; at least 3 needed"
+                                "face {i} has {n} vertices; at least 3 needed (if the faces \
+                                 do have 3 or more, the header's counts or property types do \
+                                 not match the data; it declares {declared})"
                             )));
                         }
                         for k in 1..n - 1 {
