@@ -171,7 +171,7 @@ pub enum StorageArg {
 impl StorageArg {
     /// `auto`: fp32 on CPU devices when a frame of `size` fits the device's storage-buffer range
     /// (the CPU-shaped kernels need fp32; at 1024×768 the 66-channel input is 214 MB, beyond
-    /// lavapipe's 128 MiB), else fp16. No size known (the viewer's window): fp16.
+    /// lavapipe's 128 MiB), else fp16. No size known: fp16.
     pub fn resolve(
         self,
         caps: &relit_engine::gpu::Caps,
