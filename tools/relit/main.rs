@@ -1,6 +1,7 @@
 //! `relit`: the command-line front end. Thin: every subcommand calls into the engine library.
 
 mod bench;
+mod dataset;
 mod progress;
 mod render;
 mod view;
@@ -119,9 +120,17 @@ enum Cmd {
         /// left out of every pass, so the input does not contain the target).
         #[arg(long)]
         keep_view: bool,
+        /// Store the lighting linearly, one part per light (the original lighting and each
+        /// added light alone), with every ground-truth condition, so a trainer can mix any
+        /// lighting (§6): the training samples of tools/dataset.
+        #[arg(long)]
+        parts: bool,
         #[command(flatten)]
         frame: render::FrameArgs,
     },
+    /// Build a training dataset (§6), resumably: per seed, scenegen's room, Mitsuba's ground
+    /// truth, the bake and one sample per camera with its lighting kept linear (dump --parts).
+    Dataset(dataset::DatasetArgs),
     /// The interactive viewer (winit window, Vulkan swapchain). Keys: WASD/QE move, drag or
     /// arrows look, 0–9 lighting presets, Tab/+/− light intensity, [ ] α_dim, M network/ULR/ratio,
     /// P screenshot, F11 fullscreen, Esc quit.
@@ -476,6 +485,19 @@ fn print_coverage_warnings(coverage: &[scene::LightCoverage]) {
     }
 }
 
+/// The bake parameters of a quality preset.
+fn quality_params(q: Quality) -> relit_engine::bake::BakeParams {
+    match q {
+        Quality::Preview => relit_engine::bake::BakeParams::preview(),
+        Quality::Final => relit_engine::bake::BakeParams::final_quality(),
+    }
+}
+
+/// This checkout's tools/ directory (the ground-truth renderer's scripts).
+fn tools_dir() -> PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tools")
+}
+
 fn bake(
     dir: &std::path::Path,
     p: &relit_engine::bake::BakeParams,
@@ -655,6 +677,7 @@ fn main() {
             lighting,
             out,
             keep_view,
+            parts,
             frame,
         } => render::dump(
             &opts,
@@ -663,8 +686,10 @@ fn main() {
             lighting.as_deref(),
             out,
             *keep_view,
+            *parts,
             frame,
         ),
+        Cmd::Dataset(a) => dataset::run(a, &opts),
         Cmd::Bake {
             scene,
             views,
@@ -676,10 +701,7 @@ fn main() {
             mesh_process,
             uncompressed,
         } => {
-            let mut p = match quality {
-                Quality::Preview => relit_engine::bake::BakeParams::preview(),
-                Quality::Final => relit_engine::bake::BakeParams::final_quality(),
-            };
+            let mut p = quality_params(*quality);
             p.views = views.clone();
             p.mesh_process = *mesh_process;
             p.compress = !*uncompressed;

@@ -421,12 +421,15 @@ pub fn dump(
     preset: Option<&str>,
     out: &Path,
     keep_view: bool,
+    parts: bool,
     a: &FrameArgs,
 ) -> Result<()> {
-    use safetensors::tensor::TensorView;
     let scene = Scene::load(dir)?;
     let cam = resolve_camera(&scene, camera, None)?;
     let light = lighting(&scene, preset)?;
+    if parts && preset.is_some() {
+        bail!("--parts stores every light separately: it takes no --lighting");
+    }
     let gpu = crate::open_gpu(opts)?;
     let mut fa = a.clone();
     fa.weights = None;
@@ -443,45 +446,7 @@ pub fn dump(
     if !keep_view {
         r.exclude = view_index.map(|i| i as u32);
     }
-    r.render(&cam, &light, Mode::Ulr, 1.0, None)?;
-    let input = r.buffers_ref().unwrap().input.download_chw()?;
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let mut tensors: Vec<(String, Vec<u8>, Vec<usize>)> = vec![(
-        "input".into(),
-        bytemuck::cast_slice(&input).to_vec(),
-        vec![66, h, w],
-    )];
-    let gt = ground_truth(&scene, &cam_name, &light)?;
-    if let Some((d, t)) = &gt {
-        if d.len() != 3 * w * h {
-            bail!("ground truth of {camera} is not {w}x{h}");
-        }
-        tensors.push((
-            "target_diffuse".into(),
-            bytemuck::cast_slice(d).to_vec(),
-            vec![3, h, w],
-        ));
-        tensors.push((
-            "target_total".into(),
-            bytemuck::cast_slice(t).to_vec(),
-            vec![3, h, w],
-        ));
-        let glossy: Vec<f32> = t.iter().zip(d).map(|(t, d)| t - d).collect();
-        tensors.push((
-            "target_glossy".into(),
-            bytemuck::cast_slice(&glossy).to_vec(),
-            vec![3, h, w],
-        ));
-    }
-    let views: Vec<(String, TensorView)> = tensors
-        .iter()
-        .map(|(n, b, s)| {
-            Ok((
-                n.clone(),
-                TensorView::new(safetensors::Dtype::F32, s.clone(), b)?,
-            ))
-        })
-        .collect::<Result<_>>()?;
     let mut meta = std::collections::HashMap::new();
     meta.insert(
         "relit.channels".to_string(),
@@ -494,23 +459,168 @@ pub fn dump(
             .map_or("none".to_string(), |i| scene.views[i as usize].name.clone()),
     );
     meta.insert(
-        "relit.lighting".to_string(),
-        serde_json::json!({"alpha_dim": light.alpha_dim, "intensities": frame::added_lights(&scene).iter().zip(&light.intensities).collect::<Vec<_>>()}).to_string(),
-    );
-    meta.insert(
         "relit.targets".to_string(),
         "linear radiance; target_total = target_diffuse + target_glossy".to_string(),
     );
-    let bytes = safetensors::serialize(views, Some(meta))?;
-    scene::write_atomic(out, &bytes)?;
+    let (tensors, has_gt) = if parts {
+        meta.insert(
+            "relit.lights".to_string(),
+            serde_json::to_string(&frame::added_lights(&scene))?,
+        );
+        meta.insert("relit.parts".to_string(), PARTS_DOC.to_string());
+        parts_tensors(&scene, &mut r, &cam, &cam_name)?
+    } else {
+        meta.insert(
+            "relit.lighting".to_string(),
+            serde_json::json!({"alpha_dim": light.alpha_dim, "intensities": frame::added_lights(&scene).iter().zip(&light.intensities).collect::<Vec<_>>()}).to_string(),
+        );
+        r.render(&cam, &light, Mode::Ulr, 1.0, None)?;
+        let input = r.buffers_ref().unwrap().input.download_chw()?;
+        let mut t = vec![("input".to_string(), input, vec![66, h, w])];
+        let gt = ground_truth(&scene, &cam_name, &light)?;
+        let has = gt.is_some();
+        if let Some((d, tot)) = gt {
+            t.extend(target_tensors("", d, tot, w, h, camera)?);
+        }
+        (t, has)
+    };
+    write_tensors(out, &tensors, meta)?;
     println!(
-        "{}: input 66x{h}x{w}{}",
+        "{}: {}66x{h}x{w}{}",
         out.display(),
-        if gt.is_some() {
+        if parts {
+            "lighting parts of "
+        } else {
+            "input "
+        },
+        if has_gt {
             ", ground-truth targets"
         } else {
             " (no ground truth for this camera)"
         }
     );
+    Ok(())
+}
+
+/// What `dump --parts` stores (its metadata says the same), so that a trainer can mix any
+/// lighting: every lighting-dependent channel is linear in α_dim and the added lights'
+/// intensities, except where a mirror ray meets a lit lamp.
+const PARTS_DOC: &str = "static: the 66 channels under the original lighting (alpha 0, no added \
+light); e_src: E_src (linear, W/m2); m_orig: M_tgt linear under the original lighting; for each \
+added light L (relit.lights order) at intensity 1 with the original removed (alpha 1): \
+e_add.L (E_add linear), m_add.L (M_tgt linear), dist.L (channel 65). Channels 48-50 = tm(M), \
+M = (1-alpha) m_orig + sum_L i_L m_add.L, except where some lit light has dist.L != static[65]: \
+there the nearest such light (smallest dist.L) gives M = i_L m_add.L and channel 65 = dist.L; \
+51-53 = tm(e_src/pi), 54-56 = tm(sum_L i_L e_add.L/pi), 57-59 = tm(alpha e_src/pi); \
+tm(x) = log(1+64 max(x,0))/log(65). Targets: target_diffuse.C, target_total.C per ground-truth \
+condition C (original and each added light alone at intensity 1); a lighting's target is \
+(1-alpha) C=original + sum_L i_L C=L";
+
+/// Renders the original lighting and each added light alone; returns the parts' tensors.
+fn parts_tensors(
+    scene: &Scene,
+    r: &mut Renderer,
+    cam: &Camera,
+    cam_name: &str,
+) -> Result<(Vec<Tensor>, bool)> {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let names = frame::added_lights(scene);
+    let mut light = Lighting::original(scene);
+    r.render(cam, &light, Mode::Ulr, 1.0, None)?;
+    let (input, irr, mirror) = frame_planes(r)?;
+    let mut t: Vec<Tensor> = vec![
+        ("static".into(), input, vec![66, h, w]),
+        ("e_src".into(), irr[0].clone(), vec![3, h, w]),
+        ("m_orig".into(), mirror, vec![3, h, w]),
+    ];
+    let mut has_gt = true;
+    let mut add_targets = |t: &mut Vec<Tensor>, cond: &str, l: &Lighting| -> Result<()> {
+        match ground_truth(scene, cam_name, l)? {
+            Some((d, tot)) => {
+                t.extend(target_tensors(&format!(".{cond}"), d, tot, w, h, cam_name)?)
+            }
+            None => has_gt = false,
+        }
+        Ok(())
+    };
+    add_targets(&mut t, "original", &light)?;
+    for (k, name) in names.iter().enumerate() {
+        light.alpha_dim = 1.0;
+        light.intensities.iter_mut().for_each(|i| *i = 0.0);
+        light.intensities[k] = 1.0;
+        r.render(cam, &light, Mode::Ulr, 1.0, None)?;
+        let (input, irr, mirror) = frame_planes(r)?;
+        let dist = input[65 * w * h..].to_vec();
+        t.push((format!("e_add.{name}"), irr[1].clone(), vec![3, h, w]));
+        t.push((format!("m_add.{name}"), mirror, vec![3, h, w]));
+        t.push((format!("dist.{name}"), dist, vec![1, h, w]));
+        add_targets(&mut t, name, &light)?;
+    }
+    Ok((t, has_gt))
+}
+
+type Tensor = (String, Vec<f32>, Vec<usize>);
+
+/// The last frame's 66-channel input, its three irradiance planes (E_src, E_add, E_rem) and
+/// M_tgt, the latter planar RGB and linear.
+fn frame_planes(r: &Renderer) -> Result<(Vec<f32>, [Vec<f32>; 3], Vec<f32>)> {
+    let b = r.buffers_ref().context("no frame rendered")?;
+    let n = (b.width * b.height) as usize;
+    let planar = |v: &[[f32; 4]]| -> Vec<f32> {
+        (0..3)
+            .flat_map(|c| v[..n].iter().map(move |p| p[c]))
+            .collect()
+    };
+    let irr: Vec<[f32; 4]> = b.irr.download_vec()?;
+    let mirror: Vec<[f32; 4]> = b.mirror.download_vec()?;
+    Ok((
+        b.input.download_chw()?,
+        [
+            planar(&irr[..n]),
+            planar(&irr[n..2 * n]),
+            planar(&irr[2 * n..3 * n]),
+        ],
+        planar(&mirror[..n]),
+    ))
+}
+
+/// target_diffuse, target_total and target_glossy (total − diffuse), names ending in `suffix`.
+fn target_tensors(
+    suffix: &str,
+    d: Vec<f32>,
+    t: Vec<f32>,
+    w: usize,
+    h: usize,
+    camera: &str,
+) -> Result<Vec<Tensor>> {
+    if d.len() != 3 * w * h {
+        bail!("ground truth of {camera} is not {w}x{h}");
+    }
+    let glossy: Vec<f32> = t.iter().zip(&d).map(|(t, d)| t - d).collect();
+    Ok(vec![
+        (format!("target_diffuse{suffix}"), d, vec![3, h, w]),
+        (format!("target_total{suffix}"), t, vec![3, h, w]),
+        (format!("target_glossy{suffix}"), glossy, vec![3, h, w]),
+    ])
+}
+
+/// Writes f32 tensors and metadata as one safetensors file (temp file, then rename).
+fn write_tensors(
+    out: &Path,
+    tensors: &[Tensor],
+    meta: std::collections::HashMap<String, String>,
+) -> Result<()> {
+    use safetensors::tensor::TensorView;
+    let views: Vec<(String, TensorView)> = tensors
+        .iter()
+        .map(|(n, v, s)| {
+            Ok((
+                n.clone(),
+                TensorView::new(safetensors::Dtype::F32, s.clone(), bytemuck::cast_slice(v))?,
+            ))
+        })
+        .collect::<Result<_>>()?;
+    let bytes = safetensors::serialize(views, Some(meta))?;
+    scene::write_atomic(out, &bytes)?;
     Ok(())
 }

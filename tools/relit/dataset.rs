@@ -1,0 +1,234 @@
+//! `relit dataset`: the training data of §6 in one resumable command. For each seed of two
+//! disjoint ranges (training, validation): scenegen's room → Mitsuba's ground truth of every
+//! camera and condition → the bake users run → one sample per camera (`relit dump --parts`:
+//! lighting kept linear, so the trainer mixes any lighting; tools/train/samples.py).
+//!
+//! Layout: OUT/scenes/<split>/scene_<seed>/ (the scenes and their bakes) and
+//! OUT/<split>/scene_<seed>.<camera>.safetensors. A scene whose ground truth is complete has a
+//! `.ground-truth-done` marker; without it the directory is regenerated from scratch. Bakes
+//! resume on their own and samples are written atomically, so a killed build continues where
+//! it stopped, and never reads a half-written file.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use relit_engine::gpu::GpuOptions;
+use relit_engine::scene::Scene;
+
+/// scenes/demo_room's seed (tools/make_demo.sh): never training or validation data.
+const DEMO_SEED: u64 = 2;
+const DONE: &str = ".ground-truth-done";
+
+#[derive(clap::Args, Clone)]
+pub struct DatasetArgs {
+    /// Output directory (created; an existing one is continued).
+    pub out: PathBuf,
+    /// Training scenes: seeds --seed .. --seed + N.
+    #[arg(long, default_value_t = 16)]
+    pub train: u64,
+    /// Validation scenes: seeds --val-seed .. --val-seed + M.
+    #[arg(long, default_value_t = 2)]
+    pub val: u64,
+    #[arg(long, default_value_t = 1000)]
+    pub seed: u64,
+    #[arg(long, default_value_t = 900_000)]
+    pub val_seed: u64,
+    /// Capture views per scene.
+    #[arg(long, default_value_t = 16)]
+    pub views: usize,
+    /// Image size WxH of every camera.
+    #[arg(long, default_value = "128x96", value_parser = crate::parse_res)]
+    pub res: (u32, u32),
+    /// Added lights per scene (one ground-truth condition each).
+    #[arg(long, default_value_t = 3)]
+    pub extra_lights: usize,
+    /// Novel cameras along each scene's test path (samples besides the input views).
+    #[arg(long, default_value_t = 4)]
+    pub test_views: usize,
+    /// Capture views aimed at each original light.
+    #[arg(long, default_value_t = 3)]
+    pub light_views: usize,
+    /// Samples per pixel of the ground truth.
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    /// Bake quality of every scene (the one the shipped network is run with).
+    #[arg(long, value_enum, default_value = "preview")]
+    pub quality: crate::Quality,
+}
+
+/// One scene of the dataset.
+struct Job {
+    split: &'static str,
+    seed: u64,
+}
+
+pub fn run(a: &DatasetArgs, opts: &GpuOptions) -> Result<()> {
+    let jobs = jobs(a)?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let t0 = Instant::now();
+    let mut worked = 0usize;
+    for (k, job) in jobs.iter().enumerate() {
+        let t = Instant::now();
+        let did = scene_job(a, opts, job)?;
+        worked += did as usize;
+        let mean = t0.elapsed().as_secs_f64() / worked.max(1) as f64;
+        let left = jobs.len() - k - 1;
+        println!(
+            "dataset: {}/{} scenes ({:.0}%), scene_{:05} ({}) in {:.0} s{}",
+            k + 1,
+            jobs.len(),
+            100.0 * (k + 1) as f64 / jobs.len() as f64,
+            job.seed,
+            job.split,
+            t.elapsed().as_secs_f64(),
+            if worked > 0 && left > 0 {
+                format!(", ETA {:.0} min", mean * left as f64 / 60.0)
+            } else {
+                String::new()
+            }
+        );
+    }
+    let samples = count_samples(&a.out)?;
+    println!(
+        "dataset {}: {} training and {} validation samples, {:.1} MB on disk, {:.0} s",
+        a.out.display(),
+        samples.0,
+        samples.1,
+        dir_size(&a.out) as f64 / 1e6,
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// The scenes to build, checked: disjoint seed ranges, without the demo's seed.
+fn jobs(a: &DatasetArgs) -> Result<Vec<Job>> {
+    let train = a.seed
+        ..a.seed
+            .checked_add(a.train)
+            .context("--seed + --train overflows")?;
+    let val = a.val_seed
+        ..a.val_seed
+            .checked_add(a.val)
+            .context("--val-seed + --val overflows")?;
+    if train.start < val.end && val.start < train.end {
+        bail!("training seeds {train:?} and validation seeds {val:?} overlap: choose --val-seed");
+    }
+    if train.contains(&DEMO_SEED) || val.contains(&DEMO_SEED) {
+        bail!("seed {DEMO_SEED} is the demo scene's: choose --seed/--val-seed past it");
+    }
+    if a.train == 0 {
+        bail!("--train 0: a dataset needs training scenes");
+    }
+    let split =
+        |s: &'static str, r: std::ops::Range<u64>| r.map(move |seed| Job { split: s, seed });
+    Ok(split("train", train).chain(split("val", val)).collect())
+}
+
+/// Builds what is missing of one scene; false when everything was there.
+fn scene_job(a: &DatasetArgs, opts: &GpuOptions, job: &Job) -> Result<bool> {
+    let name = format!("scene_{:05}", job.seed);
+    let dir = a.out.join("scenes").join(job.split).join(&name);
+    let mut worked = false;
+    if !dir.join(DONE).exists() {
+        ground_truth(a, &dir, job.seed)?;
+        worked = true;
+    }
+    let scene = Scene::load(&dir)?;
+    let samples = a.out.join(job.split);
+    std::fs::create_dir_all(&samples).with_context(|| format!("creating {}", samples.display()))?;
+    let cams = cameras(&scene);
+    let todo: Vec<&String> = cams
+        .iter()
+        .filter(|c| !sample_file(&samples, &name, c).exists())
+        .collect();
+    if todo.is_empty() {
+        return Ok(worked);
+    }
+    let mut p = crate::quality_params(a.quality);
+    p.compress = false;
+    crate::bake(&dir, &p, false, opts)?;
+    let frame = crate::render::FrameArgs {
+        weights: None,
+        mode: None,
+        quality: Some(a.quality),
+        storage: crate::StorageArg::F32,
+        maps: crate::render::MapsArg::Rgba16f,
+        exposure: 1.0,
+    };
+    for cam in todo {
+        let out = sample_file(&samples, &name, cam);
+        crate::render::dump(opts, &dir, cam, None, &out, false, true, &frame)?;
+    }
+    Ok(true)
+}
+
+/// scenegen's room and Mitsuba's ground truth, from scratch, then the marker.
+fn ground_truth(a: &DatasetArgs, dir: &Path, seed: u64) -> Result<()> {
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).with_context(|| format!("removing {}", dir.display()))?;
+    }
+    let o = relit_scenegen::room::RoomOptions {
+        views: a.views,
+        width: a.res.0,
+        height: a.res.1,
+        extra_lights: a.extra_lights,
+        test_views: a.test_views,
+        light_views: a.light_views,
+    };
+    relit_scenegen::generate(dir, seed, &o)?;
+    let script = crate::tools_dir().join("groundtruth/render.py");
+    let out = Command::new("python3")
+        .arg(&script)
+        .arg(dir)
+        .args(["--spp", &a.spp.to_string()])
+        .output()
+        .with_context(|| format!("running python3 {} (run tools/setup.sh)", script.display()))?;
+    if !out.status.success() {
+        bail!(
+            "ground truth of {} failed:\n{}",
+            dir.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    std::fs::write(dir.join(DONE), b"")?;
+    Ok(())
+}
+
+/// Every camera with ground truth: the input views (each left out of its own inputs) and the
+/// test path's cameras.
+fn cameras(scene: &Scene) -> Vec<String> {
+    let mut c: Vec<String> = scene.views.iter().map(|v| v.name.clone()).collect();
+    if let Some(s) = &scene.synthetic {
+        c.extend(s.test_views.iter().map(|t| t.name.clone()));
+    }
+    c
+}
+
+fn sample_file(dir: &Path, scene: &str, cam: &str) -> PathBuf {
+    dir.join(format!("{scene}.{cam}.safetensors"))
+}
+
+fn count_samples(out: &Path) -> Result<(usize, usize)> {
+    let n = |s: &str| -> usize {
+        std::fs::read_dir(out.join(s)).map_or(0, |d| {
+            d.filter_map(|e| e.ok())
+                .filter(|e| e.file_name().to_string_lossy().ends_with(".safetensors"))
+                .count()
+        })
+    };
+    Ok((n("train"), n("val")))
+}
+
+fn dir_size(p: &Path) -> u64 {
+    let Ok(md) = std::fs::symlink_metadata(p) else {
+        return 0;
+    };
+    if !md.is_dir() {
+        return md.len();
+    }
+    std::fs::read_dir(p).map_or(0, |d| {
+        d.filter_map(|e| e.ok()).map(|e| dir_size(&e.path())).sum()
+    })
+}
