@@ -54,6 +54,14 @@ if ! python3 -c "import mitsuba, numpy" >/dev/null 2>&1; then
   python3 -m pip install -q --root-user-action=ignore -r "$here/groundtruth/requirements.txt"
 fi
 
+# Trainer (tools/train): PyTorch and friends in a virtual environment of their own, kept
+# between runs (the first install downloads ~5 GB).
+venv="${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}"
+if ! "$venv/bin/python" -c "import torch, safetensors, matplotlib, numpy" >/dev/null 2>&1; then
+  python3 -m venv "$venv"
+  "$venv/bin/python" -m pip install -q -r "$here/train/requirements.txt"
+fi
+
 if ! command -v cargo >/dev/null 2>&1; then
   echo "setup: cargo not found; install Rust (https://rustup.rs) and rerun" >&2
   exit 1

@@ -8,3 +8,6 @@ cargo test --workspace "$@"
 # The ground-truth renderer's own tests (they drive the scenegen binary).
 cargo build -p relit-scenegen --bin scenegen
 (cd tools/groundtruth && python3 -m unittest -v test_groundtruth)
+# The trainer's tests (a tiny relit dataset, resume bit for bit, the engine loads its weights).
+RELIT="$PWD/target/debug/relit" "${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}/bin/python" \
+  -m unittest -v tools/train/test_train.py

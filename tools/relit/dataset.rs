@@ -159,7 +159,14 @@ fn scene_job(a: &DatasetArgs, opts: &GpuOptions, job: &Job) -> Result<bool> {
     };
     for cam in todo {
         let out = sample_file(&samples, &name, cam);
-        crate::render::dump(opts, &dir, cam, None, &out, false, true, &frame)?;
+        let req = crate::render::DumpRequest {
+            camera: cam,
+            preset: None,
+            out: &out,
+            keep_view: false,
+            parts: true,
+        };
+        crate::render::dump(opts, &dir, &req, &frame)?;
     }
     Ok(true)
 }

@@ -682,11 +682,13 @@ fn main() {
         } => render::dump(
             &opts,
             scene,
-            camera,
-            lighting.as_deref(),
-            out,
-            *keep_view,
-            *parts,
+            &render::DumpRequest {
+                camera,
+                preset: lighting.as_deref(),
+                out,
+                keep_view: *keep_view,
+                parts: *parts,
+            },
             frame,
         ),
         Cmd::Dataset(a) => dataset::run(a, &opts),

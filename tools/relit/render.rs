@@ -414,16 +414,24 @@ fn ground_truth(
     Ok(acc)
 }
 
-pub fn dump(
-    opts: &GpuOptions,
-    dir: &Path,
-    camera: &str,
-    preset: Option<&str>,
-    out: &Path,
-    keep_view: bool,
-    parts: bool,
-    a: &FrameArgs,
-) -> Result<()> {
+/// What `relit dump` writes: one camera's network input under a lighting preset, or (parts)
+/// its lighting-dependent channels one light at a time.
+pub struct DumpRequest<'a> {
+    pub camera: &'a str,
+    pub preset: Option<&'a str>,
+    pub out: &'a Path,
+    pub keep_view: bool,
+    pub parts: bool,
+}
+
+pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> Result<()> {
+    let DumpRequest {
+        camera,
+        preset,
+        out,
+        keep_view,
+        parts,
+    } = *req;
     let scene = Scene::load(dir)?;
     let cam = resolve_camera(&scene, camera, None)?;
     let light = lighting(&scene, preset)?;
@@ -560,10 +568,12 @@ fn parts_tensors(
 }
 
 type Tensor = (String, Vec<f32>, Vec<usize>);
+/// (input, [E_src, E_add, E_rem], M_tgt), planar f32.
+type FramePlanes = (Vec<f32>, [Vec<f32>; 3], Vec<f32>);
 
 /// The last frame's 66-channel input, its three irradiance planes (E_src, E_add, E_rem) and
 /// M_tgt, the latter planar RGB and linear.
-fn frame_planes(r: &Renderer) -> Result<(Vec<f32>, [Vec<f32>; 3], Vec<f32>)> {
+fn frame_planes(r: &Renderer) -> Result<FramePlanes> {
     let b = r.buffers_ref().context("no frame rendered")?;
     let n = (b.width * b.height) as usize;
     let planar = |v: &[[f32; 4]]| -> Vec<f32> {

@@ -1,26 +1,36 @@
-"""Trains RelightNet (model.py) on tensors written by `relit dump` and exports safetensors the
-engine loads (`relit render --weights FILE`).
+"""Trains RelightNet (model.py) on a `relit dataset` and exports weights the engine loads
+(`relit render --weights RUN/weights.safetensors`).
 
-  python3 tools/train/train.py --data DUMPS_DIR --out weights.safetensors [--width 66]
-         [--steps N] [--crop 128] [--lr 1e-4]
+  python3 tools/train/train.py --data DATASET --run RUN [--width 32] [--steps N] [--resume]
 
-Each dump holds `input` (66×H×W, the engine's exact features) and, for synthetic scenes,
-`target_diffuse` and `target_total` (linear radiance). The losses are the L1 terms of §5.3 in
-tonemapped space (μ = 64): L1(O_d, O*_d) + λ_vdep·L1(O_v, O*_v) + L1(O, O*), with O*_v =
-tm(O*) − tm(O*_d) and λ_vdep = 10; RMSProp with learning rate 1e-4 as in §5.4. Not here yet:
-the VGG19 perceptual terms (no VGG19 weights are available offline), the multi-view and
-adversarial terms.
+DATASET holds train/ and val/ samples written by `relit dump --parts`: lighting kept linear, so
+every step draws its own lighting (§6: the original lighting, dimmed or off, and random added
+lights at random intensities) and assembles the input and targets exactly as the engine does
+(samples.py). Losses (§5.3), in tonemapped space (μ = 64): L1(O_d, O*_d) + λ_vdep·L1(O_v, O*_v)
++ L1(O, O*), O*_v = tm(O*) − tm(O*_d), λ_vdep = 10; RMSProp, learning rate 1e-4 (§5.4).
+Not here yet: the perceptual, multi-view and adversarial terms.
+
+RUN gets checkpoint.pt (model, optimizer, step, every RNG state; written atomically every
+--checkpoint-minutes and at the end), log.jsonl (training loss per step, validation loss every
+--val-every steps), curves.png and weights.safetensors. --resume continues a run bit for bit:
+the same steps, the same losses, the same weights as an uninterrupted run.
 """
 import argparse
 import glob
+import json
 import os
 import random
+import sys
+import time
 
-import torch
+import numpy as np
+
+os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")  # deterministic cuBLAS (--device cuda)
+import torch  # noqa: E402
 import torch.nn.functional as F
-from safetensors.torch import load_file
 
-import model as M
+import model as M  # noqa: E402
+import samples as S  # noqa: E402
 
 MU = 64.0
 
@@ -29,62 +39,192 @@ def tonemap(x):
     return torch.log1p(MU * x.clamp(min=0)) / torch.log1p(torch.tensor(MU))
 
 
-def load_dumps(folder):
-    samples = []
-    for path in sorted(glob.glob(os.path.join(folder, "*.safetensors"))):
-        t = load_file(path)
-        if "target_diffuse" not in t:
-            print(f"skipping {path}: no ground-truth targets")
-            continue
-        samples.append((t["input"], tonemap(t["target_diffuse"]), tonemap(t["target_total"])))
-    if not samples:
-        raise SystemExit(f"{folder}: no dumps with targets (relit dump on a synthetic scene)")
-    return samples
+def load_split(folder):
+    paths = sorted(glob.glob(os.path.join(folder, "*.safetensors")))
+    out = [S.Sample(p) for p in paths]
+    out = [s for s in out if s.has_targets()]
+    return out
 
 
-def crop(sample, size, rng):
-    x, d, t = sample
+def random_lighting(sample, rng):
+    """α_dim and added-light intensities: original kept, dimmed or off, lamps on at random."""
+    alpha = rng.choice([0.0, rng.random(), 1.0])
+    intens = [rng.uniform(0.25, 2.0) if rng.random() < 0.5 else 0.0 for _ in sample.lights]
+    if alpha == 1.0 and not any(intens) and sample.lights:
+        intens[rng.randrange(len(intens))] = rng.uniform(0.25, 2.0)
+    return alpha, intens
+
+
+def batch(sample, alpha, intens, crop, rng, device="cpu"):
+    """(input, tm(diffuse), tm(total)) as 1×C×h×w tensors, a random crop (or the whole view)."""
+    x = sample.input(alpha, intens)
+    d, t = sample.targets(alpha, intens)
     h, w = x.shape[-2:]
-    ch, cw = min(size, h), min(size, w)
+    ch, cw = (h, w) if crop is None else (min(crop, h), min(crop, w))
     y0, x0 = rng.randrange(h - ch + 1), rng.randrange(w - cw + 1)
     s = (slice(None), slice(y0, y0 + ch), slice(x0, x0 + cw))
-    return x[s][None], d[s][None], t[s][None]
+    to = lambda a: torch.from_numpy(np.ascontiguousarray(a[s], dtype=np.float32))[None].to(device)
+    return to(x), tonemap(to(d)), tonemap(to(t))
 
 
 def losses(out, d, t, lambda_vdep=10.0):
     od, ov = out[:, :3], out[:, 3:6]
-    return (F.l1_loss(od, d) + lambda_vdep * F.l1_loss(ov, t - d) + F.l1_loss(od + ov, t))
+    return F.l1_loss(od, d) + lambda_vdep * F.l1_loss(ov, t - d) + F.l1_loss(od + ov, t)
+
+
+def validate(net, val, seed, device):
+    """Mean loss over the validation samples, each under three fixed lightings."""
+    if not val:
+        return None
+    rng = random.Random(seed)
+    total, n = 0.0, 0
+    with torch.no_grad():
+        for s in val:
+            for _ in range(3):
+                x, d, t = batch(s, *random_lighting(s, rng), None, rng, device)
+                total += losses(net(x), d, t).item()
+                n += 1
+    return total / n
+
+
+def save_atomic(obj, path):
+    tmp = path + ".tmp"
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+def rng_states(rng):
+    return {"python": rng.getstate(), "torch": torch.get_rng_state()}
+
+
+def plot(run):
+    """curves.png from log.jsonl (skipped without matplotlib)."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return
+    with open(os.path.join(run, "log.jsonl")) as f:
+        rows = [json.loads(line) for line in f]
+    tr = [(r["step"], r["loss"]) for r in rows if "loss" in r]
+    va = [(r["step"], r["val"]) for r in rows if "val" in r]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    if tr:
+        steps, vals = zip(*tr)
+        k = max(1, len(vals) // 100)
+        smooth = np.convolve(vals, np.ones(k) / k, mode="valid")
+        ax.plot(steps[k - 1:], smooth, label=f"training (mean of {k})")
+    if va:
+        ax.plot(*zip(*va), "o-", label="validation")
+    ax.set_xlabel("step")
+    ax.set_ylabel("loss (§5.3 L1 terms)")
+    ax.set_yscale("log")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(os.path.join(run, "curves.png.tmp.png"), dpi=100)
+    os.replace(os.path.join(run, "curves.png.tmp.png"), os.path.join(run, "curves.png"))
+    plt.close(fig)
+
+
+def trim_log(run, step):
+    """Drops log lines past the checkpoint's step (written after it by an interrupted run)."""
+    path = os.path.join(run, "log.jsonl")
+    if not os.path.exists(path):
+        return
+    keep = []
+    with open(path) as f:
+        lines = f.readlines()
+    for line in lines:
+        try:
+            if json.loads(line)["step"] <= step:
+                keep.append(line)
+        except (ValueError, KeyError):
+            break  # a line torn by the interruption: nothing after it was checkpointed
+    with open(path + ".tmp", "w") as f:
+        f.writelines(keep)
+    os.replace(path + ".tmp", path)
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--data", required=True)
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--width", type=int, default=66)
-    ap.add_argument("--steps", type=int, default=1000)
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", required=True, help="a relit dataset directory (train/, val/)")
+    ap.add_argument("--run", required=True, help="run directory: checkpoints, log, weights")
+    ap.add_argument("--width", type=int, default=32)
+    ap.add_argument("--steps", type=int, default=1000, help="train until this step")
     ap.add_argument("--crop", type=int, default=128)
     ap.add_argument("--lr", type=float, default=1e-4)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--val-every", type=int, default=200)
+    ap.add_argument("--checkpoint-minutes", type=float, default=5.0)
+    ap.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
+    ap.add_argument("--resume", action="store_true", help="continue RUN from its checkpoint")
+    ap.add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:1, ...")
     a = ap.parse_args()
+    if a.threads:
+        torch.set_num_threads(a.threads)
+    torch.use_deterministic_algorithms(True)
+    train = load_split(os.path.join(a.data, "train"))
+    val = load_split(os.path.join(a.data, "val"))
+    if not train:
+        sys.exit(f"{a.data}/train: no samples with targets (build them with relit dataset)")
+    os.makedirs(a.run, exist_ok=True)
+    ckpt = os.path.join(a.run, "checkpoint.pt")
     torch.manual_seed(a.seed)
     rng = random.Random(a.seed)
-    data = load_dumps(a.data)
-    net = M.RelightNet(width=a.width)
+    net = M.RelightNet(width=a.width).to(a.device)
     opt = torch.optim.RMSprop(net.parameters(), lr=a.lr)
-    first = None
-    for step in range(1, a.steps + 1):
-        x, d, t = crop(rng.choice(data), a.crop, rng)
+    step = 0
+    if a.resume:
+        if not os.path.exists(ckpt):
+            sys.exit(f"{ckpt}: no checkpoint to resume")
+        c = torch.load(ckpt, weights_only=False, map_location=a.device)
+        if c["config"] != net.config:
+            sys.exit(f"{ckpt}: network {c['config']} differs from --width {a.width}")
+        net.load_state_dict(c["model"])
+        opt.load_state_dict(c["optimizer"])
+        step = c["step"]
+        rng.setstate(c["rng"]["python"])
+        torch.set_rng_state(c["rng"]["torch"].cpu())
+        trim_log(a.run, step)
+    elif os.path.exists(ckpt):
+        sys.exit(f"{ckpt} exists: pass --resume to continue it, or choose another --run")
+    else:
+        open(os.path.join(a.run, "log.jsonl"), "w").close()
+
+    def checkpoint():
+        save_atomic({"model": net.state_dict(), "optimizer": opt.state_dict(), "step": step,
+                     "rng": rng_states(rng), "config": net.config}, ckpt)
+
+    log = open(os.path.join(a.run, "log.jsonl"), "a")
+    t0 = last_ckpt = time.time()
+    start = step
+    while step < a.steps:
+        s = train[rng.randrange(len(train))]
+        x, d, t = batch(s, *random_lighting(s, rng), a.crop, rng, a.device)
         loss = losses(net(x), d, t)
         opt.zero_grad()
         loss.backward()
         opt.step()
-        first = first if first is not None else loss.item()
-        if step % max(1, a.steps // 10) == 0 or step == 1:
-            print(f"step {step}: loss {loss.item():.4f}")
-    tmp = a.out + ".tmp"
-    M.save(net, tmp)
-    os.replace(tmp, a.out)
-    print(f"{a.out}: width {a.width}, {len(data)} dumps, loss {first:.4f} -> {loss.item():.4f}")
+        step += 1
+        row = {"step": step, "loss": loss.item()}
+        if step % a.val_every == 0 or step == a.steps:
+            row["val"] = validate(net, val, a.seed, a.device)
+            rate = (time.time() - t0) / (step - start)
+            print(f"step {step}/{a.steps}: loss {row['loss']:.4f}, validation {row['val']}, "
+                  f"{rate:.2f} s/step, ETA {(a.steps - step) * rate / 60:.0f} min", flush=True)
+        log.write(json.dumps(row) + "\n")
+        if time.time() - last_ckpt > 60 * a.checkpoint_minutes:
+            log.flush()
+            checkpoint()
+            last_ckpt = time.time()
+    log.close()
+    checkpoint()
+    tmp = os.path.join(a.run, "weights.tmp.safetensors")
+    M.save(net.cpu(), tmp)
+    os.replace(tmp, os.path.join(a.run, "weights.safetensors"))
+    plot(a.run)
+    print(f"{a.run}: step {step}, {len(train)} training and {len(val)} validation samples")
 
 
 if __name__ == "__main__":

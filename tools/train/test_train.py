@@ -1,0 +1,97 @@
+"""The trainer on a tiny `relit dataset`: it learns (the loss falls on a sample it sees over and
+over), resumes bit for bit, refuses to overwrite a run, and exports weights the engine loads.
+
+  RELIT=target/debug/relit python3 -m unittest -v tools/train/test_train.py
+
+RELIT names the relit binary (default: target/debug/relit, what `cargo test` builds).
+"""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+RELIT = os.environ.get("RELIT", os.path.join(ROOT, "target", "debug", "relit"))
+TINY = ["--views", "6", "--res", "32x24", "--spp", "4", "--extra-lights", "1", "--test-views", "1",
+        "--train", "1", "--val", "1"]
+
+
+def read(path, mode="r"):
+    with open(path, mode) as f:
+        return f.read()
+
+
+def log(run):
+    return [json.loads(line) for line in read(os.path.join(run, "log.jsonl")).splitlines()]
+
+
+def train(data, run, *extra):
+    args = [sys.executable, os.path.join(HERE, "train.py"), "--data", data, "--run", run,
+            "--width", "8", "--crop", "16", "--val-every", "3", "--threads", "1", *extra]
+    return subprocess.run(args, capture_output=True, text=True)
+
+
+class TrainerTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.data = os.path.join(cls.tmp.name, "data")
+        r = subprocess.run([RELIT, "dataset", cls.data, *TINY], capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError(f"relit dataset failed:\n{r.stdout}\n{r.stderr}")
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def run_dir(self, name):
+        return os.path.join(self.tmp.name, name)
+
+    def test_resume_is_bit_for_bit(self):
+        whole, split = self.run_dir("whole"), self.run_dir("split")
+        self.assertEqual(train(self.data, whole, "--steps", "6").returncode, 0)
+        r = train(self.data, split, "--steps", "3")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        r = train(self.data, split, "--steps", "6", "--resume")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        a = read(os.path.join(whole, "weights.safetensors"), "rb")
+        b = read(os.path.join(split, "weights.safetensors"), "rb")
+        self.assertEqual(a, b, "resumed run's weights differ from the uninterrupted run's")
+        la, lb = log(whole), log(split)
+        self.assertEqual(la, lb)
+        self.assertEqual([r["step"] for r in la], list(range(1, 7)))
+        self.assertTrue(any("val" in r and r["val"] is not None for r in la), "no validation loss")
+        self.assertTrue(os.path.exists(os.path.join(whole, "curves.png")))
+
+    def test_refuses_to_overwrite_a_run_and_to_resume_nothing(self):
+        run = self.run_dir("twice")
+        self.assertEqual(train(self.data, run, "--steps", "1").returncode, 0)
+        r = train(self.data, run, "--steps", "2")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("--resume", r.stderr)
+        r = train(self.data, self.run_dir("none"), "--steps", "2", "--resume")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("no checkpoint", r.stderr)
+
+    def test_loss_falls_and_the_engine_loads_the_weights(self):
+        run = self.run_dir("learns")
+        r = train(self.data, run, "--steps", "60", "--lr", "1e-3", "--val-every", "1000")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        rows = log(run)
+        first = sum(r["loss"] for r in rows[:10]) / 10
+        last = sum(r["loss"] for r in rows[-10:]) / 10
+        self.assertLess(last, 0.8 * first, f"loss {first:.4f} -> {last:.4f}")
+        scene = os.path.join(self.data, "scenes", "train", "scene_01000")
+        out = os.path.join(self.tmp.name, "net.exr")
+        r = subprocess.run([RELIT, "render", scene, "--camera", "test000", "--weights",
+                            os.path.join(run, "weights.safetensors"), "--out", out],
+                           capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertTrue(os.path.getsize(out) > 0)
+
+
+if __name__ == "__main__":
+    unittest.main()
