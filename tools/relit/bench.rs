@@ -865,7 +865,7 @@ fn frame_bench(
     Ok(())
 }
 
-/// Runs tools/train/bench_torch.py (needs python3 with torch) with lavapipe's thread count.
+/// Runs tools/train/bench_torch.py (needs PyTorch: see torch_python) with lavapipe's thread count.
 fn torch_bench(width: u32, (w, h): (u32, u32), repeats: u32) -> Result<()> {
     let threads = std::env::var("LP_NUM_THREADS")
         .ok()
@@ -881,7 +881,8 @@ fn torch_bench(width: u32, (w, h): (u32, u32), repeats: u32) -> Result<()> {
     .ok_or_else(|| {
         anyhow::anyhow!("tools/train/bench_torch.py not found (run from the repository root)")
     })?;
-    let st = std::process::Command::new("python3")
+    let python = torch_python();
+    let st = std::process::Command::new(&python)
         .arg(&script)
         .args(["--width", &width.to_string(), "--res", &format!("{w}x{h}")])
         .args([
@@ -891,12 +892,27 @@ fn torch_bench(width: u32, (w, h): (u32, u32), repeats: u32) -> Result<()> {
             &repeats.max(1).to_string(),
         ])
         .status()
-        .map_err(|e| anyhow::anyhow!("running python3 {}: {e}", script.display()))?;
+        .map_err(|e| anyhow::anyhow!("running {} {}: {e}", python.display(), script.display()))?;
     if !st.success() {
         anyhow::bail!(
-            "{} failed ({st}); it needs PyTorch (pip install torch)",
+            "{} failed ({st}); it needs PyTorch: run tools/setup.sh (the trainer's environment) or set RELIT_PYTHON",
             script.display()
         );
     }
     Ok(())
+}
+
+/// RELIT_PYTHON, else the trainer's environment that tools/setup.sh makes, else python3.
+fn torch_python() -> PathBuf {
+    if let Some(p) = std::env::var_os("RELIT_PYTHON") {
+        return PathBuf::from(p);
+    }
+    let venv = std::env::var_os("RELIT_TRAIN_VENV")
+        .map(PathBuf::from)
+        .or_else(|| {
+            std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/relit/train-venv"))
+        });
+    venv.map(|v| v.join("bin/python"))
+        .filter(|p| p.exists())
+        .unwrap_or_else(|| PathBuf::from("python3"))
 }
