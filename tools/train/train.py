@@ -8,7 +8,9 @@ every step draws its own lighting (§6: the original lighting, dimmed or off, an
 lights at random intensities) and assembles the input and targets exactly as the engine does
 (samples.py). Losses (§5.3), in tonemapped space (μ = 64): L1(O_d, O*_d) + λ_vdep·L1(O_v, O*_v)
 + L1(O, O*), O*_v = tm(O*) − tm(O*_d), λ_vdep = 10; RMSProp, learning rate 1e-4 (§5.4).
-Not here yet: the perceptual, multi-view and adversarial terms.
+With --vgg λ (default 0.1, the paper's λ_vgg; 0 turns it off) each of the three terms gets its
+perceptual twin, λ·L_vgg (perceptual.py: VGG16 in place of the paper's VGG19). Not here yet:
+the multi-view and adversarial terms.
 
 RUN gets checkpoint.pt (model, optimizer, step, every RNG state; written atomically every
 --checkpoint-minutes and at the end), log.jsonl (training loss per step, validation loss every
@@ -30,6 +32,7 @@ import torch  # noqa: E402
 import torch.nn.functional as F
 
 import model as M  # noqa: E402
+import perceptual as P  # noqa: E402
 import samples as S  # noqa: E402
 
 MU = 64.0
@@ -67,12 +70,16 @@ def batch(sample, alpha, intens, crop, rng, device="cpu"):
     return to(x), tonemap(to(d)), tonemap(to(t))
 
 
-def losses(out, d, t, lambda_vdep=10.0):
+def losses(out, d, t, lambda_vdep=10.0, vgg=None, lambda_vgg=0.0):
+    """§5.3's eq. 8–10: L1 (and, with vgg, perceptual) terms on diffuse, view-dependent, sum."""
     od, ov = out[:, :3], out[:, 3:6]
-    return F.l1_loss(od, d) + lambda_vdep * F.l1_loss(ov, t - d) + F.l1_loss(od + ov, t)
+    loss = F.l1_loss(od, d) + lambda_vdep * F.l1_loss(ov, t - d) + F.l1_loss(od + ov, t)
+    if vgg is not None and lambda_vgg > 0:
+        loss = loss + lambda_vgg * (vgg(od, d) + vgg(ov, t - d) + vgg(od + ov, t))
+    return loss
 
 
-def validate(net, val, seed, device):
+def validate(net, val, seed, device, vgg, lambda_vgg):
     """Mean loss over the validation samples, each under three fixed lightings."""
     if not val:
         return None
@@ -82,7 +89,7 @@ def validate(net, val, seed, device):
         for s in val:
             for _ in range(3):
                 x, d, t = batch(s, *random_lighting(s, rng), None, rng, device)
-                total += losses(net(x), d, t).item()
+                total += losses(net(x), d, t, vgg=vgg, lambda_vgg=lambda_vgg).item()
                 n += 1
     return total / n
 
@@ -160,6 +167,9 @@ def main():
     ap.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
     ap.add_argument("--resume", action="store_true", help="continue RUN from its checkpoint")
     ap.add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:1, ...")
+    ap.add_argument("--vgg", type=float, default=0.1, help="λ_vgg of the perceptual terms (0: off)")
+    ap.add_argument("--vgg-weights", default=os.path.expanduser("~/.cache/relit/vgg16.safetensors"),
+                    help="VGG16 features converted by perceptual.py (tools/setup.sh makes them)")
     a = ap.parse_args()
     if a.threads:
         torch.set_num_threads(a.threads)
@@ -168,6 +178,11 @@ def main():
     val = load_split(os.path.join(a.data, "val"))
     if not train:
         sys.exit(f"{a.data}/train: no samples with targets (build them with relit dataset)")
+    vgg = None
+    if a.vgg > 0:
+        if not os.path.exists(a.vgg_weights):
+            sys.exit(f"{a.vgg_weights}: no VGG16 weights (run tools/setup.sh, or --vgg 0)")
+        vgg = P.vgg_loss_module(a.vgg_weights).to(a.device)
     os.makedirs(a.run, exist_ok=True)
     ckpt = os.path.join(a.run, "checkpoint.pt")
     torch.manual_seed(a.seed)
@@ -179,6 +194,8 @@ def main():
         if not os.path.exists(ckpt):
             sys.exit(f"{ckpt}: no checkpoint to resume")
         c = torch.load(ckpt, weights_only=False, map_location=a.device)
+        if c.get("vgg", 0.0) != a.vgg:
+            sys.exit(f"{ckpt}: trained with --vgg {c.get('vgg', 0.0)}, not {a.vgg}")
         if c["config"] != net.config:
             sys.exit(f"{ckpt}: network {c['config']} differs from --width {a.width}")
         net.load_state_dict(c["model"])
@@ -194,7 +211,7 @@ def main():
 
     def checkpoint():
         save_atomic({"model": net.state_dict(), "optimizer": opt.state_dict(), "step": step,
-                     "rng": rng_states(rng), "config": net.config}, ckpt)
+                     "rng": rng_states(rng), "config": net.config, "vgg": a.vgg}, ckpt)
 
     log = open(os.path.join(a.run, "log.jsonl"), "a")
     t0 = last_ckpt = time.time()
@@ -202,14 +219,14 @@ def main():
     while step < a.steps:
         s = train[rng.randrange(len(train))]
         x, d, t = batch(s, *random_lighting(s, rng), a.crop, rng, a.device)
-        loss = losses(net(x), d, t)
+        loss = losses(net(x), d, t, vgg=vgg, lambda_vgg=a.vgg)
         opt.zero_grad()
         loss.backward()
         opt.step()
         step += 1
         row = {"step": step, "loss": loss.item()}
         if step % a.val_every == 0 or step == a.steps:
-            row["val"] = validate(net, val, a.seed, a.device)
+            row["val"] = validate(net, val, a.seed, a.device, vgg, a.vgg)
             rate = (time.time() - t0) / (step - start)
             print(f"step {step}/{a.steps}: loss {row['loss']:.4f}, validation {row['val']}, "
                   f"{rate:.2f} s/step, ETA {(a.steps - step) * rate / 60:.0f} min", flush=True)
