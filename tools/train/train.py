@@ -8,9 +8,11 @@ every step draws its own lighting (§6: the original lighting, dimmed or off, an
 lights at random intensities) and assembles the input and targets exactly as the engine does
 (samples.py). Losses (§5.3), in tonemapped space (μ = 64): L1(O_d, O*_d) + λ_vdep·L1(O_v, O*_v)
 + L1(O, O*), O*_v = tm(O*) − tm(O*_d), λ_vdep = 10; RMSProp, learning rate 1e-4 (§5.4).
-With --vgg λ (default 0.1, the paper's λ_vgg; 0 turns it off) each of the three terms gets its
-perceptual twin, λ·L_vgg (perceptual.py: VGG16 in place of the paper's VGG19). Not here yet:
-the multi-view and adversarial terms.
+Each further term of §5.3 has a switch, its weight (0 turns it off; defaults are the paper's):
+--vgg 0.1, the perceptual twin of each L1 term (perceptual.py: VGG16 in place of VGG19);
+--multiview 1, O_diffuse consistent with the nearest camera of the same scene reprojected with
+the true depth (multiview.py; both views whole, not cropped); --adv 0.05, a relativistic
+discriminator on [O_d, O_v] (adversarial.py), trained alongside with RMSProp at the same rate.
 
 RUN gets checkpoint.pt (model, optimizer, step, every RNG state; written atomically every
 --checkpoint-minutes and at the end), log.jsonl (training loss per step, validation loss every
@@ -31,7 +33,9 @@ os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")  # deterministic cuB
 import torch  # noqa: E402
 import torch.nn.functional as F
 
+import adversarial as A  # noqa: E402
 import model as M  # noqa: E402
+import multiview as MV  # noqa: E402
 import perceptual as P  # noqa: E402
 import samples as S  # noqa: E402
 
@@ -168,6 +172,9 @@ def main():
     ap.add_argument("--resume", action="store_true", help="continue RUN from its checkpoint")
     ap.add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:1, ...")
     ap.add_argument("--vgg", type=float, default=0.1, help="λ_vgg of the perceptual terms (0: off)")
+    ap.add_argument("--multiview", type=float, default=1.0,
+                    help="weight of the multi-view consistency term (0: off)")
+    ap.add_argument("--adv", type=float, default=0.05, help="λ_adv of the adversarial term (0: off)")
     ap.add_argument("--vgg-weights", default=os.path.expanduser("~/.cache/relit/vgg16.safetensors"),
                     help="VGG16 features converted by perceptual.py (tools/setup.sh makes them)")
     a = ap.parse_args()
@@ -189,17 +196,25 @@ def main():
     rng = random.Random(a.seed)
     net = M.RelightNet(width=a.width).to(a.device)
     opt = torch.optim.RMSprop(net.parameters(), lr=a.lr)
+    disc = A.Discriminator().to(a.device) if a.adv > 0 else None
+    opt_d = torch.optim.RMSprop(disc.parameters(), lr=a.lr) if disc is not None else None
+    nbr = MV.neighbours(train) if a.multiview > 0 else [None] * len(train)
+    warps = {}
+    terms = {"vgg": a.vgg, "multiview": a.multiview, "adv": a.adv}
     step = 0
     if a.resume:
         if not os.path.exists(ckpt):
             sys.exit(f"{ckpt}: no checkpoint to resume")
         c = torch.load(ckpt, weights_only=False, map_location=a.device)
-        if c.get("vgg", 0.0) != a.vgg:
-            sys.exit(f"{ckpt}: trained with --vgg {c.get('vgg', 0.0)}, not {a.vgg}")
+        if c["terms"] != terms:
+            sys.exit(f"{ckpt}: trained with {c['terms']}, not {terms} (--vgg, --multiview, --adv)")
         if c["config"] != net.config:
             sys.exit(f"{ckpt}: network {c['config']} differs from --width {a.width}")
         net.load_state_dict(c["model"])
         opt.load_state_dict(c["optimizer"])
+        if disc is not None:
+            disc.load_state_dict(c["disc"])
+            opt_d.load_state_dict(c["disc_optimizer"])
         step = c["step"]
         rng.setstate(c["rng"]["python"])
         torch.set_rng_state(c["rng"]["torch"].cpu())
@@ -211,20 +226,45 @@ def main():
 
     def checkpoint():
         save_atomic({"model": net.state_dict(), "optimizer": opt.state_dict(), "step": step,
-                     "rng": rng_states(rng), "config": net.config, "vgg": a.vgg}, ckpt)
+                     "rng": rng_states(rng), "config": net.config, "terms": terms,
+                     "disc": disc.state_dict() if disc is not None else None,
+                     "disc_optimizer": opt_d.state_dict() if opt_d is not None else None}, ckpt)
 
     log = open(os.path.join(a.run, "log.jsonl"), "a")
     t0 = last_ckpt = time.time()
     start = step
     while step < a.steps:
-        s = train[rng.randrange(len(train))]
-        x, d, t = batch(s, *random_lighting(s, rng), a.crop, rng, a.device)
-        loss = losses(net(x), d, t, vgg=vgg, lambda_vgg=a.vgg)
+        i = rng.randrange(len(train))
+        s = train[i]
+        lighting = random_lighting(s, rng)
+        both = a.multiview > 0 and nbr[i] is not None
+        x, d, t = batch(s, *lighting, None if both else a.crop, rng, a.device)
+        out = net(x)
+        row = {"step": step + 1}
+        loss = losses(out, d, t, vgg=vgg, lambda_vgg=a.vgg)
+        if both:
+            xb = batch(train[nbr[i]], *lighting, None, rng, a.device)[0]
+            if (i, nbr[i]) not in warps:
+                warps[(i, nbr[i])] = MV.warp(s, train[nbr[i]])
+            mv = MV.loss(out[:, :3], net(xb)[:, :3], *warps[(i, nbr[i])])
+            row["multiview"] = mv.item()
+            loss = loss + a.multiview * mv
+        fake, real = out[:, :6], torch.cat([d, t - d], 1)
+        if disc is not None:
+            g = A.generator_loss(disc, fake, real)
+            row["adv"] = g.item()
+            loss = loss + a.adv * g
         opt.zero_grad()
         loss.backward()
         opt.step()
+        if disc is not None:
+            dl = A.discriminator_loss(disc, fake, real)
+            opt_d.zero_grad()
+            dl.backward()
+            opt_d.step()
+            row["disc"] = dl.item()
         step += 1
-        row = {"step": step, "loss": loss.item()}
+        row["loss"] = loss.item()
         if step % a.val_every == 0 or step == a.steps:
             row["val"] = validate(net, val, a.seed, a.device, vgg, a.vgg)
             rate = (time.time() - t0) / (step - start)
