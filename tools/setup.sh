@@ -57,7 +57,7 @@ fi
 # Trainer (tools/train): PyTorch and friends in a virtual environment of their own, kept
 # between runs (the first install downloads ~5 GB).
 venv="${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}"
-if ! "$venv/bin/python" -c "import torch, safetensors, matplotlib, numpy" >/dev/null 2>&1; then
+if ! "$venv/bin/python" -c "import torch, safetensors, matplotlib, numpy, OpenEXR" >/dev/null 2>&1; then
   python3 -m venv "$venv"
   "$venv/bin/python" -m pip install -q -r "$here/train/requirements.txt"
 fi

