@@ -68,26 +68,35 @@ pub fn run(a: &DatasetArgs, opts: &GpuOptions) -> Result<()> {
     let jobs = jobs(a)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let t0 = Instant::now();
-    let mut worked = 0usize;
+    // Seconds of the scenes built from scratch this run: what the ETA extrapolates.
+    let mut full: Vec<f64> = Vec::new();
     for (k, job) in jobs.iter().enumerate() {
         let t = Instant::now();
-        let did = scene_job(a, opts, job)?;
-        worked += did as usize;
-        let mean = t0.elapsed().as_secs_f64() / worked.max(1) as f64;
-        let left = jobs.len() - k - 1;
+        let fresh = !scene_dir(a, job).join(DONE).exists();
+        scene_job(a, opts, job)?;
+        let secs = t.elapsed().as_secs_f64();
+        if fresh {
+            full.push(secs);
+        }
+        let left = jobs[k + 1..]
+            .iter()
+            .filter(|j| !scene_dir(a, j).join(DONE).exists())
+            .count();
+        let eta = match (full.is_empty(), left) {
+            (_, 0) => String::new(),
+            (true, _) => ", ETA after the first new scene".to_string(),
+            (false, n) => {
+                let mean = full.iter().sum::<f64>() / full.len() as f64;
+                format!(", ETA {:.0} min", mean * n as f64 / 60.0)
+            }
+        };
         println!(
-            "dataset: {}/{} scenes ({:.0}%), scene_{:05} ({}) in {:.0} s{}",
+            "dataset: {}/{} scenes ({:.0}%), scene_{:05} ({}) in {secs:.0} s{eta}",
             k + 1,
             jobs.len(),
             100.0 * (k + 1) as f64 / jobs.len() as f64,
             job.seed,
             job.split,
-            t.elapsed().as_secs_f64(),
-            if worked > 0 && left > 0 {
-                format!(", ETA {:.0} min", mean * left as f64 / 60.0)
-            } else {
-                String::new()
-            }
         );
     }
     let samples = count_samples(&a.out)?;
@@ -126,14 +135,19 @@ fn jobs(a: &DatasetArgs) -> Result<Vec<Job>> {
     Ok(split("train", train).chain(split("val", val)).collect())
 }
 
-/// Builds what is missing of one scene; false when everything was there.
-fn scene_job(a: &DatasetArgs, opts: &GpuOptions, job: &Job) -> Result<bool> {
+fn scene_dir(a: &DatasetArgs, job: &Job) -> PathBuf {
+    a.out
+        .join("scenes")
+        .join(job.split)
+        .join(format!("scene_{:05}", job.seed))
+}
+
+/// Builds what is missing of one scene.
+fn scene_job(a: &DatasetArgs, opts: &GpuOptions, job: &Job) -> Result<()> {
     let name = format!("scene_{:05}", job.seed);
-    let dir = a.out.join("scenes").join(job.split).join(&name);
-    let mut worked = false;
+    let dir = scene_dir(a, job);
     if !dir.join(DONE).exists() {
         ground_truth(a, &dir, job.seed)?;
-        worked = true;
     }
     let scene = Scene::load(&dir)?;
     let samples = a.out.join(job.split);
@@ -144,7 +158,7 @@ fn scene_job(a: &DatasetArgs, opts: &GpuOptions, job: &Job) -> Result<bool> {
         .filter(|c| !sample_file(&samples, &name, c).exists())
         .collect();
     if todo.is_empty() {
-        return Ok(worked);
+        return Ok(());
     }
     let mut p = crate::quality_params(a.quality);
     p.compress = false;
@@ -168,7 +182,7 @@ fn scene_job(a: &DatasetArgs, opts: &GpuOptions, job: &Job) -> Result<bool> {
         };
         crate::render::dump(opts, &dir, &req, &frame)?;
     }
-    Ok(true)
+    Ok(())
 }
 
 /// scenegen's room and Mitsuba's ground truth, from scratch, then the marker.

@@ -29,7 +29,7 @@ def log(run):
 
 
 def train(data, run, *extra):
-    args = [sys.executable, os.path.join(HERE, "train.py"), "--data", data, "--run", run,
+    args = [sys.executable, os.path.join(HERE, "train.py"), "--data", data, "--out", run,
             "--width", "8", "--crop", "16", "--val-every", "3", "--threads", "1", "--vgg", "0", *extra]
     return subprocess.run(args, capture_output=True, text=True)
 
@@ -73,6 +73,27 @@ class TrainerTest(unittest.TestCase):
         r = train(self.data, run, "--steps", "3", "--resume")
         self.assertNotEqual(r.returncode, 0)
         self.assertIn("--vgg", r.stderr)
+
+    def test_data_parallel_training_under_torchrun_resumes_bit_for_bit(self):
+        def ddp(run, *extra):
+            args = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2",
+                    "--master_port", str(29500 + os.getpid() % 1000),
+                    os.path.join(HERE, "train.py"), "--data", self.data, "--out", run, "--width", "8",
+                    "--crop", "16", "--val-every", "2", "--threads", "1", "--vgg", "0", *extra]
+            r = subprocess.run(args, capture_output=True, text=True)
+            self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+            return r.stdout
+        whole, split = self.run_dir("ddp-whole"), self.run_dir("ddp-split")
+        self.assertIn("2 process(es)", ddp(whole, "--steps", "4"))
+        ddp(split, "--steps", "2")
+        ddp(split, "--steps", "4", "--resume")
+        self.assertEqual(read(os.path.join(whole, "weights.safetensors"), "rb"),
+                         read(os.path.join(split, "weights.safetensors"), "rb"))
+        self.assertEqual(log(whole), log(split))
+        # A run of 2 processes is not resumed by 1.
+        r = train(self.data, split, "--steps", "5", "--resume")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("processes", r.stderr)
 
     def test_refuses_to_overwrite_a_run_and_to_resume_nothing(self):
         run = self.run_dir("twice")

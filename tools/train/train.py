@@ -1,7 +1,8 @@
 """Trains RelightNet (model.py) on a `relit dataset` and exports weights the engine loads
 (`relit render --weights RUN/weights.safetensors`).
 
-  python3 tools/train/train.py --data DATASET --run RUN [--width 32] [--steps N] [--resume]
+  python3 tools/train/train.py --data DATASET --out RUN [--width 32] [--steps N] [--resume]
+  torchrun --nproc_per_node N tools/train/train.py --device cuda ...   (data-parallel)
 
 DATASET holds train/ and val/ samples written by `relit dump --parts`: lighting kept linear, so
 every step draws its own lighting (§6: the original lighting, dimmed or off, and random added
@@ -157,10 +158,11 @@ def trim_log(run, step):
     os.replace(path + ".tmp", path)
 
 
-def main():
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", required=True, help="a relit dataset directory (train/, val/)")
-    ap.add_argument("--run", required=True, help="run directory: checkpoints, log, weights")
+    # --out, not --run: torchrun would take --run for an abbreviation of its --run-path.
+    ap.add_argument("--out", required=True, help="run directory: checkpoints, log, weights")
     ap.add_argument("--width", type=int, default=32)
     ap.add_argument("--trunk-blocks", type=int, default=M.DEFAULT_CONFIG["trunk_blocks"])
     ap.add_argument("--level-blocks", type=int, default=M.DEFAULT_CONFIG["level_blocks"])
@@ -173,17 +175,87 @@ def main():
     ap.add_argument("--checkpoint-minutes", type=float, default=5.0)
     ap.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
     ap.add_argument("--resume", action="store_true", help="continue RUN from its checkpoint")
-    ap.add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:1, ...")
+    ap.add_argument("--device", default="cpu",
+                    help="torch device: cpu or cuda (under torchrun, each process takes its own GPU)")
     ap.add_argument("--vgg", type=float, default=0.1, help="λ_vgg of the perceptual terms (0: off)")
     ap.add_argument("--multiview", type=float, default=1.0,
                     help="weight of the multi-view consistency term (0: off)")
     ap.add_argument("--adv", type=float, default=0.05, help="λ_adv of the adversarial term (0: off)")
     ap.add_argument("--vgg-weights", default=os.path.expanduser("~/.cache/relit/vgg16.safetensors"),
                     help="VGG16 features converted by perceptual.py (tools/setup.sh makes them)")
-    a = ap.parse_args()
+    return ap.parse_args()
+
+
+class Dist:
+    """Data-parallel training under torchrun (WORLD_SIZE > 1): every process draws its own
+    samples and lightings, gradients are averaged before each optimizer step, process 0 logs,
+    validates and checkpoints (with every process's RNG state, so --resume is exact)."""
+
+    def __init__(self, a):
+        self.world = int(os.environ.get("WORLD_SIZE", "1"))
+        self.rank = int(os.environ.get("RANK", "0"))
+        if self.world > 1:
+            import torch.distributed as dist
+            self.dist = dist
+            dist.init_process_group("nccl" if a.device.startswith("cuda") else "gloo")
+            if a.device.startswith("cuda"):
+                a.device = f"cuda:{int(os.environ.get('LOCAL_RANK', '0'))}"
+
+    def average_gradients(self, module):
+        if self.world == 1:
+            return
+        for p in module.parameters():
+            if p.grad is not None:
+                self.dist.all_reduce(p.grad)
+                p.grad /= self.world
+
+    def gather(self, obj):
+        """Every process's obj, in rank order, on every process."""
+        if self.world == 1:
+            return [obj]
+        out = [None] * self.world
+        self.dist.all_gather_object(out, obj)
+        return out
+
+    def barrier(self):
+        if self.world > 1:
+            self.dist.barrier()
+
+
+def step_loss(a, net, disc, vgg, train, nbr, warps, i, lighting, rng, row):
+    """The generator's loss of one step (eq. 8–12 as switched on) and the discriminator's input."""
+    s = train[i]
+    both = a.multiview > 0 and nbr[i] is not None
+    x, d, t = batch(s, *lighting, None if both else a.crop, rng, a.device)
+    if both:
+        # The neighbour goes through the network in the same batch (one forward, one backward).
+        xb = batch(train[nbr[i]], *lighting, None, rng, a.device)[0]
+        outs = net(torch.cat([x, xb]))
+        out = outs[:1]
+    else:
+        out = net(x)
+    loss = losses(out, d, t, vgg=vgg, lambda_vgg=a.vgg)
+    if both:
+        if (i, nbr[i]) not in warps:
+            warps[(i, nbr[i])] = MV.warp(s, train[nbr[i]])
+        mv = MV.loss(out[:, :3], outs[1:, :3], *warps[(i, nbr[i])])
+        row["multiview"] = mv.item()
+        loss = loss + a.multiview * mv
+    fake, real = out[:, :6], torch.cat([d, t - d], 1)
+    if disc is not None:
+        g = A.generator_loss(disc, fake, real)
+        row["adv"] = g.item()
+        loss = loss + a.adv * g
+    return loss, fake, real
+
+
+def main():
+    a = parse_args()
     if a.threads:
         torch.set_num_threads(a.threads)
     torch.use_deterministic_algorithms(True)
+    dd = Dist(a)
+    lead = dd.rank == 0
     train = load_split(os.path.join(a.data, "train"))
     val = load_split(os.path.join(a.data, "val"))
     if not train:
@@ -193,25 +265,28 @@ def main():
         if not os.path.exists(a.vgg_weights):
             sys.exit(f"{a.vgg_weights}: no VGG16 weights (run tools/setup.sh, or --vgg 0)")
         vgg = P.vgg_loss_module(a.vgg_weights).to(a.device)
-    os.makedirs(a.run, exist_ok=True)
-    ckpt = os.path.join(a.run, "checkpoint.pt")
+    os.makedirs(a.out, exist_ok=True)
+    ckpt = os.path.join(a.out, "checkpoint.pt")
+    # The same initial weights in every process; the data each draws differs.
     torch.manual_seed(a.seed)
-    rng = random.Random(a.seed)
     net = M.RelightNet(width=a.width, trunk_blocks=a.trunk_blocks, level_blocks=a.level_blocks,
                        tail_blocks=a.tail_blocks).to(a.device)
     opt = torch.optim.RMSprop(net.parameters(), lr=a.lr)
     disc = A.Discriminator().to(a.device) if a.adv > 0 else None
     opt_d = torch.optim.RMSprop(disc.parameters(), lr=a.lr) if disc is not None else None
+    rng = random.Random(a.seed * 1000 + dd.rank)
+    torch.manual_seed(a.seed * 1000 + dd.rank)
     nbr = MV.neighbours(train) if a.multiview > 0 else [None] * len(train)
     warps = {}
-    terms = {"vgg": a.vgg, "multiview": a.multiview, "adv": a.adv}
+    terms = {"vgg": a.vgg, "multiview": a.multiview, "adv": a.adv, "processes": dd.world}
     step = 0
     if a.resume:
         if not os.path.exists(ckpt):
             sys.exit(f"{ckpt}: no checkpoint to resume")
         c = torch.load(ckpt, weights_only=False, map_location=a.device)
         if c["terms"] != terms:
-            sys.exit(f"{ckpt}: trained with {c['terms']}, not {terms} (--vgg, --multiview, --adv)")
+            sys.exit(f"{ckpt}: trained with {c['terms']}, not {terms} "
+                     "(--vgg, --multiview, --adv, torchrun processes)")
         if c["config"] != net.config:
             sys.exit(f"{ckpt}: network {c['config']} differs from {net.config} (--width, --*-blocks)")
         net.load_state_dict(c["model"])
@@ -220,72 +295,69 @@ def main():
             disc.load_state_dict(c["disc"])
             opt_d.load_state_dict(c["disc_optimizer"])
         step = c["step"]
-        rng.setstate(c["rng"]["python"])
-        torch.set_rng_state(c["rng"]["torch"].cpu())
-        trim_log(a.run, step)
+        rng.setstate(c["rng"][dd.rank]["python"])
+        torch.set_rng_state(c["rng"][dd.rank]["torch"].cpu())
+        if lead:
+            trim_log(a.out, step)
     elif os.path.exists(ckpt):
-        sys.exit(f"{ckpt} exists: pass --resume to continue it, or choose another --run")
-    else:
-        open(os.path.join(a.run, "log.jsonl"), "w").close()
+        sys.exit(f"{ckpt} exists: pass --resume to continue it, or choose another --out")
+    elif lead:
+        open(os.path.join(a.out, "log.jsonl"), "w").close()
+    dd.barrier()
 
     def checkpoint():
-        save_atomic({"model": net.state_dict(), "optimizer": opt.state_dict(), "step": step,
-                     "rng": rng_states(rng), "config": net.config, "terms": terms,
-                     "disc": disc.state_dict() if disc is not None else None,
-                     "disc_optimizer": opt_d.state_dict() if opt_d is not None else None}, ckpt)
+        states = dd.gather(rng_states(rng))
+        if lead:
+            save_atomic({"model": net.state_dict(), "optimizer": opt.state_dict(), "step": step,
+                         "rng": states, "config": net.config, "terms": terms,
+                         "disc": disc.state_dict() if disc is not None else None,
+                         "disc_optimizer": opt_d.state_dict() if opt_d is not None else None}, ckpt)
 
-    log = open(os.path.join(a.run, "log.jsonl"), "a")
+    log = open(os.path.join(a.out, "log.jsonl"), "a") if lead else None
     t0 = last_ckpt = time.time()
     start = step
     while step < a.steps:
         i = rng.randrange(len(train))
-        s = train[i]
-        lighting = random_lighting(s, rng)
-        both = a.multiview > 0 and nbr[i] is not None
-        x, d, t = batch(s, *lighting, None if both else a.crop, rng, a.device)
-        out = net(x)
         row = {"step": step + 1}
-        loss = losses(out, d, t, vgg=vgg, lambda_vgg=a.vgg)
-        if both:
-            xb = batch(train[nbr[i]], *lighting, None, rng, a.device)[0]
-            if (i, nbr[i]) not in warps:
-                warps[(i, nbr[i])] = MV.warp(s, train[nbr[i]])
-            mv = MV.loss(out[:, :3], net(xb)[:, :3], *warps[(i, nbr[i])])
-            row["multiview"] = mv.item()
-            loss = loss + a.multiview * mv
-        fake, real = out[:, :6], torch.cat([d, t - d], 1)
-        if disc is not None:
-            g = A.generator_loss(disc, fake, real)
-            row["adv"] = g.item()
-            loss = loss + a.adv * g
+        loss, fake, real = step_loss(a, net, disc, vgg, train, nbr, warps, i,
+                                     random_lighting(train[i], rng), rng, row)
         opt.zero_grad()
         loss.backward()
+        dd.average_gradients(net)
         opt.step()
         if disc is not None:
             dl = A.discriminator_loss(disc, fake, real)
             opt_d.zero_grad()
             dl.backward()
+            dd.average_gradients(disc)
             opt_d.step()
             row["disc"] = dl.item()
         step += 1
         row["loss"] = loss.item()
-        if step % a.val_every == 0 or step == a.steps:
+        if lead and (step % a.val_every == 0 or step == a.steps):
             row["val"] = validate(net, val, a.seed, a.device, vgg, a.vgg)
             rate = (time.time() - t0) / (step - start)
             print(f"step {step}/{a.steps}: loss {row['loss']:.4f}, validation {row['val']}, "
                   f"{rate:.2f} s/step, ETA {(a.steps - step) * rate / 60:.0f} min", flush=True)
-        log.write(json.dumps(row) + "\n")
-        if time.time() - last_ckpt > 60 * a.checkpoint_minutes:
-            log.flush()
+        if lead:
+            log.write(json.dumps(row) + "\n")
+        # Every process decides alike when to checkpoint (the gather is collective).
+        due = dd.gather(time.time() - last_ckpt > 60 * a.checkpoint_minutes)[0]
+        if due:
+            if lead:
+                log.flush()
             checkpoint()
             last_ckpt = time.time()
-    log.close()
     checkpoint()
-    tmp = os.path.join(a.run, "weights.tmp.safetensors")
+    if not lead:
+        return
+    log.close()
+    tmp = os.path.join(a.out, "weights.tmp.safetensors")
     M.save(net.cpu(), tmp)
-    os.replace(tmp, os.path.join(a.run, "weights.safetensors"))
-    plot(a.run)
-    print(f"{a.run}: step {step}, {len(train)} training and {len(val)} validation samples")
+    os.replace(tmp, os.path.join(a.out, "weights.safetensors"))
+    plot(a.out)
+    print(f"{a.out}: step {step}, {len(train)} training and {len(val)} validation samples, "
+          f"{dd.world} process(es)")
 
 
 if __name__ == "__main__":
