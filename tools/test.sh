@@ -11,3 +11,5 @@ cargo build -p relit-scenegen --bin scenegen
 # The trainer's tests (a tiny relit dataset, resume bit for bit, the engine loads its weights).
 RELIT="$PWD/target/debug/relit" "${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}/bin/python" \
   -m unittest -v tools/train/test_train.py
+# Bounded fuzzing of every file format (2 min; tools/fuzz.sh).
+bash tools/fuzz.sh 15

@@ -110,12 +110,15 @@ fn check_jpeg_end(path: &Path, data: &[u8]) -> Result<()> {
     }
 }
 
-/// Loads an image as linear RGB. Refuses non-finite or negative-infinite pixels, naming the first.
-pub fn load_rgb(path: &Path) -> Result<RgbImage> {
-    let (w, h) = image_size(path)?;
-    let img = if is_exr(path) {
-        use exr::prelude::*;
-        let image = read()
+/// Decodes an EXR's first valid layer as RGB. On one thread, so that a panic inside the exr
+/// crate (fuzzing found one in its B44 decompressor with overflow checks on) reaches
+/// `catch_unwind` and becomes an error naming the file, instead of aborting the process from a
+/// worker thread.
+fn decode_exr(path: &Path) -> Result<RgbImage> {
+    use exr::prelude::*;
+    let data = super::files::read(path, super::files::FileKind::Image)?;
+    let decoded = std::panic::catch_unwind(|| {
+        read()
             .no_deep_data()
             .largest_resolution_level()
             .rgba_channels(
@@ -126,14 +129,26 @@ pub fn load_rgb(path: &Path) -> Result<RgbImage> {
             )
             .first_valid_layer()
             .all_attributes()
-            .from_file(path)
-            .map_err(|e| {
-                crate::Error::input(
-                    path,
-                    format!("cannot decode EXR (truncated or corrupt): {e}"),
-                )
-            })?;
-        image.layer_data.channel_data.pixels
+            .non_parallel()
+            .from_buffered(std::io::Cursor::new(&data))
+    })
+    .map_err(|_| {
+        crate::Error::input(path, "the EXR decoder failed on this file (corrupt block)")
+    })?;
+    let image = decoded.map_err(|e| {
+        crate::Error::input(
+            path,
+            format!("cannot decode EXR (truncated or corrupt): {e}"),
+        )
+    })?;
+    Ok(image.layer_data.channel_data.pixels)
+}
+
+/// Loads an image as linear RGB. Refuses non-finite or negative-infinite pixels, naming the first.
+pub fn load_rgb(path: &Path) -> Result<RgbImage> {
+    let (w, h) = image_size(path)?;
+    let img = if is_exr(path) {
+        decode_exr(path)?
     } else {
         let data = super::files::read(path, super::files::FileKind::Image)?;
         check_jpeg_end(path, &data)?;
@@ -144,8 +159,8 @@ pub fn load_rgb(path: &Path) -> Result<RgbImage> {
         limits.max_image_width = Some(MAX_IMAGE_DIM);
         limits.max_image_height = Some(MAX_IMAGE_DIM);
         reader.limits(limits);
-        let decoded = reader
-            .decode()
+        let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader.decode()))
+            .map_err(|_| Error::input(path, "the image decoder failed on this file (corrupt)"))?
             .map_err(|e| Error::input(path, format!("cannot decode image: {e}")))?
             .into_rgb32f();
         RgbImage {
