@@ -157,8 +157,11 @@ pub fn weights(data: &[u8]) {
     }
 }
 
+/// A fuzz target: what it does with one input.
+pub type Target = fn(&[u8]);
+
 /// Every target by name, for the regression test.
-pub const TARGETS: [(&str, fn(&[u8])); 8] = [
+pub const TARGETS: [(&str, Target); 8] = [
     ("scene_json", scene_json),
     ("colmap", colmap),
     ("bundler", bundler),
