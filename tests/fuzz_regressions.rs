@@ -32,6 +32,20 @@ fn fuzz_findings_and_seeds_are_handled_without_panics() {
     assert!(n >= 10, "only {n} inputs found under tools/fuzz");
     assert!(
         !inputs("regressions", "image").is_empty(),
-        "the EXR decoder finding is kept"
+        "the EXR decoder findings are kept"
     );
+}
+
+/// The EXR findings are B44-compressed: refused by name before the decoder sees them.
+#[test]
+fn b44_exr_is_refused_with_a_clear_error() {
+    for path in inputs("regressions", "image") {
+        let data = std::fs::read(&path).unwrap();
+        let exr = std::env::temp_dir().join(format!("relit-b44-{}.exr", std::process::id()));
+        std::fs::write(&exr, &data[1..]).unwrap();
+        let e = relit_engine::scene::image::load_rgb(&exr)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("B44") && e.contains("relit-b44"), "{e}");
+    }
 }

@@ -73,6 +73,17 @@ pub fn image_size(path: &Path) -> Result<(u32, u32)> {
             .ok_or_else(|| Error::input(path, "EXR file has no layer"))?;
         let size = h.layer_size;
         check_dims(path, size.0 as u64, size.1 as u64)?;
+        // The exr crate's B44 decoder overflows on corrupt blocks (found by fuzzing): B44 is a
+        // lossy 16-bit playback format, not one for captured radiance, so it is refused.
+        if matches!(
+            h.compression,
+            exr::compression::Compression::B44 | exr::compression::Compression::B44A
+        ) {
+            return Err(Error::input(
+                path,
+                "B44-compressed EXR is not supported (lossy); save it uncompressed or with ZIP, PIZ or RLE",
+            ));
+        }
         Ok((size.0 as u32, size.1 as u32))
     } else {
         let reader = image::ImageReader::open(path)
