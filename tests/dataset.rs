@@ -8,20 +8,8 @@ use std::path::Path;
 use std::process::Command;
 
 fn relit(args: &[&str]) -> (bool, String) {
-    let entry = relit_engine::gpu::load_entry().unwrap();
-    let validate = relit_engine::gpu::validation_layer_available(&entry);
-    let out = Command::new(env!("CARGO_BIN_EXE_relit"))
-        .args(args)
-        .env("RELIT_VALIDATE", if validate { "1" } else { "0" })
-        .output()
-        .expect("run relit");
-    let text =
-        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !text.contains("[vulkan validation error]"),
-        "validation errors in relit {args:?}:\n{text}"
-    );
-    (out.status.success(), text)
+    let (code, so, se) = common::run_relit(args);
+    (code == 0, so + &se)
 }
 
 fn ok(args: &[&str]) -> String {

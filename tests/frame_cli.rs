@@ -7,23 +7,7 @@ use std::path::Path;
 use std::process::Command;
 
 fn relit(args: &[&str]) -> (i32, String, String) {
-    let entry = relit_engine::gpu::load_entry().unwrap();
-    let validate = relit_engine::gpu::validation_layer_available(&entry);
-    let out = Command::new(env!("CARGO_BIN_EXE_relit"))
-        .args(args)
-        .env("RELIT_VALIDATE", if validate { "1" } else { "0" })
-        .output()
-        .expect("run relit");
-    let (code, so, se) = (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    );
-    assert!(
-        !se.contains("[vulkan validation error]"),
-        "validation errors in relit {args:?}:\n{se}"
-    );
-    (code, so, se)
+    common::run_relit(args)
 }
 
 fn ok(args: &[&str]) -> String {

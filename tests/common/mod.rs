@@ -55,3 +55,25 @@ pub fn render_ground_truth(dir: &std::path::Path, args: &[&str]) {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// Runs the relit binary with validation on when the layer is installed; fails the test on any
+/// validation error it printed. Returns (exit code, stdout, stderr).
+pub fn run_relit(args: &[&str]) -> (i32, String, String) {
+    let entry = gpu::load_entry().unwrap();
+    let validate = gpu::validation_layer_available(&entry);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_relit"))
+        .args(args)
+        .env("RELIT_VALIDATE", if validate { "1" } else { "0" })
+        .output()
+        .expect("run relit");
+    let (code, so, se) = (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    );
+    assert!(
+        !se.contains("[vulkan validation error]"),
+        "validation errors in relit {args:?}:\n{se}"
+    );
+    (code, so, se)
+}
