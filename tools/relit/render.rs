@@ -664,7 +664,24 @@ fn write_tensors(
             ))
         })
         .collect::<Result<_>>()?;
-    let bytes = safetensors::serialize(views, Some(meta))?;
+    let mut bytes = safetensors::serialize(views, Some(meta))?;
+    sort_header(&mut bytes)?;
     scene::write_atomic(out, &bytes)?;
+    Ok(())
+}
+
+/// Rewrites a safetensors header with its keys sorted, in the same number of bytes, so the
+/// same tensors and metadata give the same file (the metadata is a HashMap, whose order
+/// changes from run to run).
+fn sort_header(bytes: &mut [u8]) -> Result<()> {
+    let n = u64::from_le_bytes(bytes[..8].try_into()?) as usize;
+    let header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + n])?;
+    // serde_json's maps are ordered by key.
+    let sorted = serde_json::to_vec(&header)?;
+    if sorted.len() > n {
+        bail!("safetensors header grew when sorted");
+    }
+    bytes[8..8 + sorted.len()].copy_from_slice(&sorted);
+    bytes[8 + sorted.len()..8 + n].fill(b' ');
     Ok(())
 }
