@@ -135,15 +135,28 @@ impl Mesh {
 }
 
 fn load_obj(path: &Path) -> Result<Mesh> {
-    // tobj re-indexes without bounds checks in some paths, so check face indices first.
+    // tobj re-indexes without bounds checks in some paths, so check face indices first. Only
+    // positions and faces are used: tobj is given those alone (its texture-coordinate and
+    // normal indexing overflows on some inputs: a fuzzing finding), faces reduced to their
+    // position indices.
     let text = super::files::read(path, super::files::FileKind::Mesh)?;
     let text = String::from_utf8_lossy(&text);
+    let mut clean = String::with_capacity(text.len());
     let mut nv: i64 = 0;
     for (ln, line) in text.lines().enumerate() {
         let mut it = line.split_whitespace();
         match it.next() {
-            Some("v") => nv += 1,
+            Some("v") => {
+                nv += 1;
+                clean.push_str(line);
+                clean.push('\n');
+            }
+            Some(k @ ("o" | "g")) => {
+                clean.push_str(k);
+                clean.push_str(" m\n");
+            }
             Some("f") => {
+                clean.push('f');
                 let toks: Vec<&str> = it.collect();
                 if toks.len() < 3 {
                     return Err(Error::input(
@@ -157,6 +170,8 @@ fn load_obj(path: &Path) -> Result<Mesh> {
                 }
                 for tok in toks {
                     let idx = tok.split('/').next().unwrap_or("");
+                    clean.push(' ');
+                    clean.push_str(idx);
                     let v: i64 = idx.parse().map_err(|_| {
                         Error::input(
                             path,
@@ -174,6 +189,7 @@ fn load_obj(path: &Path) -> Result<Mesh> {
                         ));
                     }
                 }
+                clean.push('\n');
             }
             _ => {}
         }
@@ -184,10 +200,11 @@ fn load_obj(path: &Path) -> Result<Mesh> {
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, _) = tobj::load_obj_buf(&mut std::io::Cursor::new(text.as_bytes()), &opts, |_| {
-        Ok((Vec::new(), Default::default()))
-    })
-    .map_err(|e| Error::input(path, format!("OBJ parse error: {e}")))?;
+    let (models, _) =
+        tobj::load_obj_buf(&mut std::io::Cursor::new(clean.as_bytes()), &opts, |_| {
+            Ok((Vec::new(), Default::default()))
+        })
+        .map_err(|e| Error::input(path, format!("OBJ parse error: {e}")))?;
     let mut mesh = Mesh::default();
     // Every model of an OBJ shares one vertex list in the file; tobj splits it per model.
     for m in models {
