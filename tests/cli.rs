@@ -3,6 +3,8 @@
 mod common;
 
 use std::path::Path;
+
+use relit_engine::net::{describe_backend, Storage};
 use std::process::Command;
 
 fn relit(args: &[&str]) -> (i32, String, String) {
@@ -59,23 +61,34 @@ fn info_reports_features_and_network_path() {
     let (code, out, err) = relit(&["info", "--validate"]);
     assert_eq!(code, 0, "{err}");
     assert!(
-        out.contains("VK_KHR_ray_query (ray query)") && out.contains("network path:"),
+        out.contains("VK_KHR_ray_query (ray query)") && out.contains("network path, "),
         "{out}"
     );
     assert!(!err.contains("validation error"), "{err}");
-    if out.contains("llvmpipe") {
-        assert!(out.contains("network path: CPU-shaped"), "{out}");
-        let rq = out
-            .lines()
-            .find(|l| l.contains("VK_KHR_ray_query"))
-            .unwrap();
-        assert!(rq.trim_end().ends_with("yes"), "{rq}");
-        let cm = out
-            .lines()
-            .find(|l| l.contains("cooperative matrix"))
-            .unwrap();
-        assert!(cm.trim_end().ends_with("no"), "{cm}");
+    // The same decision as the kernels', from the same device's capabilities.
+    let gpu = common::gpu();
+    for storage in [Storage::F16, Storage::F32] {
+        let line = format!(
+            "network path, {storage:?} storage: {}",
+            describe_backend(&gpu.caps, storage)
+        );
+        assert!(out.contains(&line), "{line}\n{out}");
     }
+    let cm = out
+        .lines()
+        .find(|l| l.contains("cooperative matrix "))
+        .unwrap();
+    let offered = if gpu.caps.coop_matrix.is_empty() {
+        "no"
+    } else {
+        "yes"
+    };
+    assert!(cm.trim_end().ends_with(offered), "{cm}");
+    let rq = out
+        .lines()
+        .find(|l| l.contains("VK_KHR_ray_query"))
+        .unwrap();
+    assert!(rq.trim_end().ends_with("yes"), "{rq}");
 }
 
 #[test]

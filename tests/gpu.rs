@@ -326,20 +326,28 @@ fn device_choice_errors_name_the_devices() {
     ));
 }
 
+/// The backend follows the device's capabilities, never its name: fp16 storage takes the
+/// cooperative-matrix kernels exactly when a shape fits, fp32 the CPU-shaped ones on CPU devices.
 #[test]
-fn lavapipe_reports_ray_query_and_cpu_network_path() {
-    use relit_engine::net::{Backend, NetKernels, Storage};
+fn network_backend_follows_capabilities() {
+    use relit_engine::net::{backend_for, coop_tile, Backend, NetKernels, Storage};
     let gpu = common::gpu();
     assert!(gpu.caps.missing().is_empty());
-    if gpu.caps.driver_name.contains("llvmpipe") {
-        // Mesa 25.0 lavapipe has no cooperative matrices: the CPU-shaped kernels run with fp32
-        // storage, the portable ones with fp16.
-        assert!(gpu.caps.coop_matrix.is_empty());
-        assert!(gpu.network_path().starts_with("CPU-shaped"));
-        let k = NetKernels::new(&gpu, Storage::F32).unwrap();
-        assert_eq!(k.backend, Backend::CpuLanes);
-        let k = NetKernels::new(&gpu, Storage::F16).unwrap();
-        assert_eq!(k.backend, Backend::Portable);
+    for storage in [Storage::F16, Storage::F32] {
+        let k = NetKernels::new(&gpu, storage).unwrap();
+        assert_eq!(k.backend, backend_for(&gpu.caps, storage));
+    }
+    assert_eq!(
+        backend_for(&gpu.caps, Storage::F16) == Backend::CoopMatrix,
+        coop_tile(&gpu.caps).is_some()
+    );
+    let cpu = gpu.caps.device_type == vk::PhysicalDeviceType::CPU;
+    assert_eq!(
+        backend_for(&gpu.caps, Storage::F32) == Backend::CpuLanes,
+        cpu
+    );
+    if common::require_coop() {
+        assert!(coop_tile(&gpu.caps).is_some(), "{:?}", gpu.caps.coop_matrix);
     }
     common::assert_no_validation_errors(&gpu);
 }
@@ -378,7 +386,7 @@ fn timestamps_measure_a_dispatch() {
 #[test]
 fn gemm_portable_matches_cpu_and_coop_matrix_module_is_built() {
     use half::f16;
-    use relit_engine::net::{select_backend, Backend, Gemm};
+    use relit_engine::net::{coop_tile, Backend, CoopTile, Gemm};
     let gpu = common::gpu();
     let (m, n, k) = (32u32, 48u32, 80u32);
     let mut rng = Rng::new(17);
@@ -421,38 +429,54 @@ fn gemm_portable_matches_cpu_and_coop_matrix_module_is_built() {
     assert_eq!(cm.sets, portable.sets);
     assert_eq!(cm.push_size, 12);
 
-    // Selection: the coop-matrix path only with a fitting shape and 32-wide subgroups.
+    // Selection: a shape with fp16 A/B, fp32 accumulators and sides dividing 16; the largest.
     let mut caps = gpu.caps.clone();
     caps.coop_matrix.clear();
-    assert_eq!(select_backend(&caps), Backend::Portable);
-    let shape = |c| gpu::CoopMatrixShape {
-        m: 16,
-        n: 16,
-        k: 16,
+    caps.subgroup_size = 32;
+    assert_eq!(coop_tile(&caps), None);
+    let shape = |(m, n, k), c| gpu::CoopMatrixShape {
+        m,
+        n,
+        k,
         a: vk::ComponentTypeKHR::FLOAT16,
         b: vk::ComponentTypeKHR::FLOAT16,
         c,
         result: c,
         scope: vk::ScopeKHR::SUBGROUP,
     };
-    caps.coop_matrix.push(shape(vk::ComponentTypeKHR::FLOAT16));
-    caps.subgroup_size = 32;
+    let (f16, f32) = (vk::ComponentTypeKHR::FLOAT16, vk::ComponentTypeKHR::FLOAT32);
+    caps.coop_matrix.push(shape((16, 16, 16), f16));
+    assert_eq!(coop_tile(&caps), None, "fp16 accumulators do not fit");
+    caps.coop_matrix.push(shape((16, 16, 32), f32));
+    caps.coop_matrix.push(shape((4, 4, 4), f32));
     assert_eq!(
-        select_backend(&caps),
-        Backend::Portable,
-        "fp16 accumulators do not fit"
+        coop_tile(&caps),
+        None,
+        "k = 32 does not divide 16; 4x4 needs 16 tiles"
     );
-    caps.coop_matrix.push(shape(vk::ComponentTypeKHR::FLOAT32));
-    assert_eq!(select_backend(&caps), Backend::CoopMatrix);
+    caps.coop_matrix.push(shape((8, 8, 8), f32));
+    let tile = |subgroup, m, n, k| Some(CoopTile { subgroup, m, n, k });
+    assert_eq!(coop_tile(&caps), tile(32, 8, 8, 8));
+    caps.coop_matrix.push(shape((16, 8, 16), f32));
+    assert_eq!(
+        coop_tile(&caps),
+        tile(32, 16, 8, 16),
+        "the largest fitting shape"
+    );
     caps.subgroup_size = 8;
-    assert_eq!(select_backend(&caps), Backend::Portable);
-    // On this device the selected backend runs.
+    assert_eq!(coop_tile(&caps), tile(8, 16, 8, 16));
+    // On this device the selected backend runs and matches the CPU.
     let sel = Gemm::new(&gpu).unwrap();
-    if gpu.caps.coop_matrix.is_empty() {
-        assert_eq!(sel.backend, Backend::Portable);
-    }
-    if sel.backend == Backend::Portable {
-        assert_eq!(sel.run(&a, &b, m, n, k).unwrap(), c);
-    }
+    assert_eq!(
+        sel.backend == Backend::CoopMatrix,
+        coop_tile(&gpu.caps).is_some()
+    );
+    let got = sel.run(&a, &b, m, n, k).unwrap();
+    let e = got
+        .iter()
+        .zip(&c)
+        .fold(0f32, |e, (x, y)| e.max((x - y).abs()));
+    // Portable: the same kernel as above; cooperative matrix: fp32 accumulation in another order.
+    assert!(e < 1e-4, "{:?} gemm: max difference {e}", sel.backend);
     common::assert_no_validation_errors(&gpu);
 }

@@ -6,8 +6,8 @@ mod common;
 
 use relit_engine::gpu::{self, vk};
 use relit_engine::net::{
-    conv_reference, select_backend, upsample_add_reference, Backend, Epilogue, NetKernels, Network,
-    Storage, Tensor,
+    backend_for, conv_reference, coop_tile, upsample_add_reference, Backend, Epilogue, NetKernels,
+    Network, Storage, Tensor,
 };
 use relit_engine::scene::synth::Rng;
 
@@ -36,6 +36,11 @@ fn conv_kernels_match_cpu() {
     ];
     for (ocn, ci4, rows) in [(4, 2, 4), (4, 1, 3), (8, 2, 1), (16, 1, 2)] {
         kernels.push(NetKernels::with_lanes(&gpu, ocn, ci4, rows).unwrap());
+    }
+    // The cooperative-matrix kernel where the device offers a shape (lavapipe >= 26:
+    // tools/lavapipe26.sh runs this test there).
+    if coop_tile(&gpu.caps).is_some() || common::require_coop() {
+        kernels.push(NetKernels::with_backend(&gpu, Storage::F16, Backend::CoopMatrix).unwrap());
     }
     for kern in &kernels {
         let storage = kern.storage;
@@ -153,6 +158,10 @@ fn network_matches_pytorch_golden() {
         let (h, w) = (shape[1] as u32, shape[2] as u32);
         for (storage, tol) in [(Storage::F32, 1e-4f32), (Storage::F16, 5e-3)] {
             let net = Network::load(&gpu, &weights, storage).unwrap();
+            eprintln!("{name} {storage:?}: {:?} kernels", net.kernels.backend);
+            if storage == Storage::F16 && common::require_coop() {
+                assert_eq!(net.kernels.backend, Backend::CoopMatrix);
+            }
             let got = net.run(&x, h, w).unwrap();
             let (e, s) = max_err(&got, &y);
             eprintln!("{name} {storage:?}: max error {e} (output scale {s})");
@@ -213,12 +222,18 @@ fn conv_coop_matrix_module_is_built_and_selected_only_when_it_fits() {
     );
     assert_eq!(cm.sets, portable.sets);
     assert_eq!(cm.push_size, portable.push_size);
-    // fp32 storage never takes the coop-matrix path; fp16 takes what select_backend says.
+    // fp32 storage never takes the coop-matrix path; fp16 takes what backend_for says, and
+    // forcing it on a device without a fitting shape is an error, not a crash.
     assert!(NetKernels::with_backend(&gpu, Storage::F32, Backend::CoopMatrix).is_err());
     let k = NetKernels::new(&gpu, Storage::F16).unwrap();
-    assert_eq!(k.backend, select_backend(&gpu.caps));
-    if gpu.caps.coop_matrix.is_empty() {
+    assert_eq!(k.backend, backend_for(&gpu.caps, Storage::F16));
+    if coop_tile(&gpu.caps).is_none() {
         assert_eq!(k.backend, Backend::Portable);
+        let e = NetKernels::with_backend(&gpu, Storage::F16, Backend::CoopMatrix)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("no cooperative-matrix shape"), "{e}");
     }
     let _ = vk::ComponentTypeKHR::FLOAT16;
 }

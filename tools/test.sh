@@ -11,5 +11,8 @@ cargo build -p relit-scenegen --bin scenegen
 # The trainer's tests (a tiny relit dataset, resume bit for bit, the engine loads its weights).
 RELIT="$PWD/target/debug/relit" "${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}/bin/python" \
   -m unittest -v tools/train/test_train.py
+# The cooperative-matrix kernels on lavapipe >= 26 (Mesa's emulation), in a Debian 13 root
+# built once with debootstrap (~600 MB in ~/.cache/relit; tools/lavapipe26.sh).
+bash tools/lavapipe26.sh
 # Bounded fuzzing of every file format (2 min; tools/fuzz.sh).
 bash tools/fuzz.sh 15

@@ -10,6 +10,10 @@ use relit_engine::gpu::{self, DeviceChoice, Gpu, GpuOptions};
 pub fn gpu() -> Arc<Gpu> {
     let entry = gpu::load_entry().expect("Vulkan loader");
     let validation = gpu::validation_layer_available(&entry);
+    assert!(
+        validation || !require_coop(),
+        "the cooperative-matrix run (tools/lavapipe26.sh) needs the validation layer"
+    );
     if !validation {
         eprintln!("note: VK_LAYER_KHRONOS_validation not installed; running without validation");
     }
@@ -19,6 +23,12 @@ pub fn gpu() -> Arc<Gpu> {
         ..Default::default()
     })
     .unwrap_or_else(|e| panic!("cannot open a Vulkan device: {e}"))
+}
+
+/// `RELIT_REQUIRE_COOP=1` (set by tools/lavapipe26.sh): the device must run the network's
+/// cooperative-matrix kernels, so the tests that exercise them cannot pass by skipping them.
+pub fn require_coop() -> bool {
+    std::env::var("RELIT_REQUIRE_COOP").is_ok_and(|v| v == "1")
 }
 
 /// Fails the test if the validation layer reported any error on `gpu`.

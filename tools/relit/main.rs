@@ -355,7 +355,18 @@ fn info(opts: &GpuOptions) -> Result<()> {
         "BC6H sampled with linear filter",
         yes(c.bc6h_sampled_linear)
     );
-    println!("network path: {}", g.network_path());
+    // What runs, from the same decision as the kernels (fp32 is `--storage auto`'s choice on
+    // CPU devices when the frame fits, fp16 otherwise).
+    for storage in [
+        relit_engine::net::Storage::F16,
+        relit_engine::net::Storage::F32,
+    ] {
+        println!(
+            "network path, {:?} storage: {}",
+            storage,
+            relit_engine::net::describe_backend(c, storage)
+        );
+    }
     println!("limits:");
     println!(
         "  maxStorageBufferRange              {} MiB",

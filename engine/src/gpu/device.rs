@@ -118,17 +118,6 @@ impl Caps {
             .map(|(n, _)| *n)
             .collect()
     }
-
-    /// A cooperative-matrix shape usable by the network kernels: fp16 A/B, fp16 or fp32
-    /// accumulators, subgroup scope.
-    pub fn fp16_coop_shape(&self) -> Option<&CoopMatrixShape> {
-        self.coop_matrix.iter().find(|s| {
-            s.a == vk::ComponentTypeKHR::FLOAT16
-                && s.b == vk::ComponentTypeKHR::FLOAT16
-                && (s.c == vk::ComponentTypeKHR::FLOAT32 || s.c == vk::ComponentTypeKHR::FLOAT16)
-                && s.scope == vk::ScopeKHR::SUBGROUP
-        })
-    }
 }
 
 /// The Vulkan device and everything that lives as long as it. Resources hold an `Arc<Gpu>`.
@@ -545,9 +534,12 @@ impl Gpu {
             .scalar_block_layout(true)
             .host_query_reset(true)
             .vulkan_memory_model(caps.vulkan_memory_model);
+        // maintenance4 (mandatory in 1.3): the `*_cm.comp` kernels size their workgroup to the
+        // subgroup with a specialization constant (LocalSizeId).
         let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
             .synchronization2(true)
-            .dynamic_rendering(true);
+            .dynamic_rendering(true)
+            .maintenance4(true);
         let mut fas = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default()
             .acceleration_structure(true);
         let mut frq = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
@@ -638,17 +630,6 @@ impl Gpu {
 
     pub fn force_staging(&self) -> bool {
         self.force_staging.load(Ordering::SeqCst)
-    }
-
-    /// Which network path runs on this device (§5.1 kernels).
-    pub fn network_path(&self) -> &'static str {
-        if self.caps.fp16_coop_shape().is_some() {
-            "cooperative matrix"
-        } else if self.caps.device_type == vk::PhysicalDeviceType::CPU {
-            "CPU-shaped (fp32 storage: lanes are pixels, weights at uniform addresses)"
-        } else {
-            "portable"
-        }
     }
 }
 

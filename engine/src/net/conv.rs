@@ -7,7 +7,8 @@ use std::sync::Arc;
 
 use half::f16;
 
-use super::{select_backend, Backend};
+use super::gemm::coop_spec;
+use super::{backend_for, Backend};
 use crate::error::{Error, Result};
 use crate::gpu::{bytes_of, full_barrier, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline};
 
@@ -476,14 +477,7 @@ pub struct NetKernels {
 impl NetKernels {
     /// The backend the device supports: cooperative matrices need fp16 storage.
     pub fn new(gpu: &Arc<Gpu>, storage: Storage) -> Result<NetKernels> {
-        let backend = match storage {
-            Storage::F16 => select_backend(&gpu.caps),
-            Storage::F32 if gpu.caps.device_type == vk::PhysicalDeviceType::CPU => {
-                Backend::CpuLanes
-            }
-            Storage::F32 => Backend::Portable,
-        };
-        NetKernels::with_backend(gpu, storage, backend)
+        NetKernels::with_backend(gpu, storage, backend_for(&gpu.caps, storage))
     }
 
     /// A convolution layer (OIHW `weights`) packed for these kernels.
@@ -538,9 +532,13 @@ impl NetKernels {
 
     pub fn with_backend(gpu: &Arc<Gpu>, storage: Storage, backend: Backend) -> Result<NetKernels> {
         let conv = match (storage, backend) {
-            (Storage::F16, Backend::CoopMatrix) => "net/conv_cm.comp",
-            (Storage::F16, Backend::Portable) => "net/conv.comp",
-            (Storage::F32, Backend::Portable | Backend::CpuLanes) => "net/conv_f32.comp",
+            (Storage::F16, Backend::CoopMatrix) => {
+                Pipeline::compute_specialized(gpu, "net/conv_cm.comp", &coop_spec(gpu)?)?
+            }
+            (Storage::F16, Backend::Portable) => Pipeline::compute(gpu, "net/conv.comp")?,
+            (Storage::F32, Backend::Portable | Backend::CpuLanes) => {
+                Pipeline::compute(gpu, "net/conv_f32.comp")?
+            }
             (Storage::F32, Backend::CoopMatrix) => {
                 return Err(Error::Other(
                     "the cooperative-matrix kernels need fp16 storage".into(),
@@ -575,7 +573,7 @@ impl NetKernels {
         Ok(NetKernels {
             backend,
             storage,
-            conv: Pipeline::compute(gpu, conv)?,
+            conv,
             lanes,
             conv_rem,
             up: Pipeline::compute(gpu, up)?,

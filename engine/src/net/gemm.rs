@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use half::f16;
 
-use super::{select_backend, Backend};
+use super::{backend_for, coop_tile, Backend, Storage};
 use crate::error::{Error, Result};
 use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline};
 
@@ -26,18 +26,17 @@ pub struct Gemm {
 
 impl Gemm {
     pub fn new(gpu: &Arc<Gpu>) -> Result<Gemm> {
-        Gemm::with_backend(gpu, select_backend(&gpu.caps))
+        Gemm::with_backend(gpu, backend_for(&gpu.caps, Storage::F16))
     }
 
     pub fn with_backend(gpu: &Arc<Gpu>, backend: Backend) -> Result<Gemm> {
-        let name = match backend {
-            Backend::CoopMatrix => "net/gemm_cm.comp",
-            Backend::Portable | Backend::CpuLanes => "net/gemm.comp",
+        let pipeline = match backend {
+            Backend::CoopMatrix => {
+                Pipeline::compute_specialized(gpu, "net/gemm_cm.comp", &coop_spec(gpu)?)?
+            }
+            Backend::Portable | Backend::CpuLanes => Pipeline::compute(gpu, "net/gemm.comp")?,
         };
-        Ok(Gemm {
-            backend,
-            pipeline: Pipeline::compute(gpu, name)?,
-        })
+        Ok(Gemm { backend, pipeline })
     }
 
     /// `a` is m×k, `b` is k×n, row-major; all sizes multiples of [`TILE`]. Returns m×n in f32.
@@ -82,4 +81,15 @@ impl Gemm {
         c.truncate((m * n) as usize);
         Ok(c)
     }
+}
+
+/// The specialization constants of a `*_cm.comp` kernel on this device, or why it cannot run.
+pub(super) fn coop_spec(gpu: &Gpu) -> Result<[u32; 4]> {
+    coop_tile(&gpu.caps).map(|t| t.spec()).ok_or_else(|| {
+        Error::Other(format!(
+            "{} offers no cooperative-matrix shape the network kernels fit (fp16 A/B, fp32 \
+             accumulators, subgroup scope, sides dividing 16)",
+            gpu.caps.name
+        ))
+    })
 }

@@ -28,20 +28,78 @@ pub enum Backend {
     CpuLanes,
 }
 
-/// The backend for kernels written for 16×16×16 fp16 tiles with fp32 accumulators at subgroup
-/// scope, run by one 32-wide subgroup per tile.
-pub fn select_backend(caps: &Caps) -> Backend {
-    let fits = caps.coop_matrix.iter().any(|s| {
-        (s.m, s.n, s.k) == (16, 16, 16)
-            && s.a == vk::ComponentTypeKHR::FLOAT16
-            && s.b == vk::ComponentTypeKHR::FLOAT16
-            && s.c == vk::ComponentTypeKHR::FLOAT32
-            && s.result == vk::ComponentTypeKHR::FLOAT32
-            && s.scope == vk::ScopeKHR::SUBGROUP
-    });
-    if fits && caps.subgroup_size == 32 {
-        Backend::CoopMatrix
-    } else {
-        Backend::Portable
+/// The cooperative-matrix shape the `*_cm.comp` kernels run with (`coop_shape.glsl`): one
+/// subgroup of `subgroup` lanes per workgroup, `m`×`k` fp16 A tiles, `k`×`n` fp16 B tiles, fp32
+/// accumulators.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CoopTile {
+    pub subgroup: u32,
+    pub m: u32,
+    pub n: u32,
+    pub k: u32,
+}
+
+impl CoopTile {
+    /// Specialization constants 0–3 of `coop_shape.glsl`.
+    pub fn spec(&self) -> [u32; 4] {
+        [self.subgroup, self.m, self.n, self.k]
+    }
+}
+
+/// The shape for the network's kernels among those the device offers: fp16 A/B, fp32
+/// accumulators and result, subgroup scope, sides dividing 16 (a workgroup covers a 16×16 block
+/// of the output, so packing and padding stay those of the portable kernels) and at most 4
+/// accumulator tiles; the largest such shape. `None`: the portable kernels run.
+pub fn coop_tile(caps: &Caps) -> Option<CoopTile> {
+    let divides16 = |v: u32| v > 0 && 16 % v == 0;
+    caps.coop_matrix
+        .iter()
+        .filter(|s| {
+            s.a == vk::ComponentTypeKHR::FLOAT16
+                && s.b == vk::ComponentTypeKHR::FLOAT16
+                && s.c == vk::ComponentTypeKHR::FLOAT32
+                && s.result == vk::ComponentTypeKHR::FLOAT32
+                && s.scope == vk::ScopeKHR::SUBGROUP
+                && divides16(s.m)
+                && divides16(s.n)
+                && divides16(s.k)
+                && (16 / s.m) * (16 / s.n) <= 4
+        })
+        .max_by_key(|s| s.m * s.n * s.k)
+        .filter(|_| {
+            caps.subgroup_size > 0 && caps.subgroup_size <= caps.max_compute_workgroup_invocations
+        })
+        .map(|s| CoopTile {
+            subgroup: caps.subgroup_size,
+            m: s.m,
+            n: s.n,
+            k: s.k,
+        })
+}
+
+/// The backend the network runs on for a storage type: the one decision behind both the
+/// kernels (`NetKernels::new`, `Gemm::new`) and what `relit info` reports. fp16: cooperative
+/// matrices where the device offers a shape that fits (`coop_tile`), else portable. fp32: the
+/// CPU-shaped kernels on CPU devices, else portable.
+pub fn backend_for(caps: &Caps, storage: Storage) -> Backend {
+    match storage {
+        Storage::F16 if coop_tile(caps).is_some() => Backend::CoopMatrix,
+        Storage::F16 => Backend::Portable,
+        Storage::F32 if caps.device_type == vk::PhysicalDeviceType::CPU => Backend::CpuLanes,
+        Storage::F32 => Backend::Portable,
+    }
+}
+
+/// One line for `relit info`: what runs with `storage`.
+pub fn describe_backend(caps: &Caps, storage: Storage) -> String {
+    match (backend_for(caps, storage), coop_tile(caps)) {
+        (Backend::CoopMatrix, Some(t)) => format!(
+            "cooperative matrix ({}x{}x{} fp16 tiles, fp32 accumulators, {} lanes)",
+            t.m, t.n, t.k, t.subgroup
+        ),
+        (Backend::CpuLanes, _) => {
+            "CPU-shaped (lanes are pixels, weights at uniform addresses)".into()
+        }
+        _ => "portable".into(),
     }
 }
