@@ -6,6 +6,8 @@
 // The light is not in the mesh, so rays never hit it: its light arrives by the NEE only.
 #extension GL_EXT_ray_query : require
 #extension GL_EXT_scalar_block_layout : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
 #extension GL_GOOGLE_include_directive : require
 
 layout(local_size_x = 64) in;

@@ -4,6 +4,8 @@
 // and a Lambertian surface has I = ρ/π·E, hence the π: the result is the reflectance ρ that
 // the added-irradiance path tracer multiplies by at each bounce.
 #extension GL_EXT_scalar_block_layout : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
 #extension GL_GOOGLE_include_directive : require
 
 layout(local_size_x = 64) in;

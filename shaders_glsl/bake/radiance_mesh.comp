@@ -3,6 +3,8 @@
 // proxy-mesh vertex averages the radiance I_j of the views j that see it (depth test), weighted
 // by the inverse distance to camera j, leaving out pixels on or beside a declared light.
 #extension GL_EXT_scalar_block_layout : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
 #extension GL_GOOGLE_include_directive : require
 
 layout(local_size_x = 64) in;

@@ -1,15 +1,25 @@
 // The input views as the bake and frame passes read them: cameras, per-view G-buffers of the
 // proxy mesh (position + camera depth, normal) and colour images, all views at one resolution,
-// stored view-major in storage buffers. A shader that includes this declares:
-//   layout(set = 0, binding = VIEWS_BINDING + 0) cameras, + 1 positions, + 2 normals, + 3 images.
+// stored view-major. A shader that includes this declares one binding, VIEWS_BINDING: a uniform
+// block with the four buffers' device addresses (bake::GpuViews). The buffers are read through
+// buffer-device-address pointers because lavapipe (Mesa 25.0) compiles a storage-buffer load
+// whose offset is not a compile-time constant (a view index from a loop, a pixel from a
+// projection) into a loop over the lanes with a bounds check each, and a pointer load into one
+// masked gather. The includer enables GL_EXT_buffer_reference, GL_EXT_buffer_reference_uvec2 and
+// GL_EXT_scalar_block_layout.
 #ifndef RELIT_VIEWS_GLSL
 #define RELIT_VIEWS_GLSL
 #include "camera.glsl"
 
-layout(set = 0, binding = VIEWS_BINDING + 0, scalar) readonly buffer Cameras { Camera cams[]; };
-layout(set = 0, binding = VIEWS_BINDING + 1) readonly buffer GPos { vec4 gpos[]; };
-layout(set = 0, binding = VIEWS_BINDING + 2) readonly buffer GNrm { vec4 gnrm[]; };
-layout(set = 0, binding = VIEWS_BINDING + 3) readonly buffer Images { vec4 images[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 16) readonly buffer CameraRef { Camera v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 16) readonly buffer Vec4Ref { vec4 v[]; };
+layout(set = 0, binding = VIEWS_BINDING, scalar) uniform Views {
+    uvec2 cameras; uvec2 positions; uvec2 normals; uvec2 images;
+} views_addr;
+#define cams (CameraRef(views_addr.cameras).v)
+#define gpos (Vec4Ref(views_addr.positions).v)
+#define gnrm (Vec4Ref(views_addr.normals).v)
+#define images (Vec4Ref(views_addr.images).v)
 
 // Relative depth tolerance of the visibility test: the point is seen by view j when its camera
 // depth agrees with view j's depth map within this fraction (MVS meshes are only this good).

@@ -6,6 +6,8 @@
 // Output: 3 planes of vec4 per pixel (E_src, E_add, E_rem).
 #extension GL_EXT_ray_query : require
 #extension GL_EXT_scalar_block_layout : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
 #extension GL_GOOGLE_include_directive : require
 
 layout(local_size_x = 64) in;

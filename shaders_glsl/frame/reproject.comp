@@ -11,6 +11,8 @@
 // Output: 16 planes of f16vec4 per pixel (I_1..8 then M_1..8), w = 1 where defined; half
 // precision keeps the buffer within maxStorageBufferRange up to 1024x768.
 #extension GL_EXT_scalar_block_layout : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
 #extension GL_EXT_shader_explicit_arithmetic_types_float16 : require
 #extension GL_EXT_shader_16bit_storage : require
 #extension GL_GOOGLE_include_directive : require

@@ -769,8 +769,9 @@ fn frame_bench(
     let path = scene
         .synthetic
         .as_ref()
+        .filter(|s| !s.test_path.is_empty())
         .map(|s| scene.root.join(&s.test_path))
-        .filter(|p| p.exists());
+        .filter(|p| p.is_file());
     let cams: Vec<relit_engine::scene::Camera> = match &path {
         Some(p) => {
             let cp = relit_engine::scene::path::CameraPath::load(p)?;

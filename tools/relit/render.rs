@@ -98,7 +98,9 @@ pub fn resolve_camera(scene: &Scene, spec: &str, res: Option<(u32, u32)>) -> Res
         t.camera
             .to_camera(&scene.root.join(scene::SCENE_FILE), &t.name)?
     } else if Path::new(spec).is_file() {
-        let text = std::fs::read_to_string(spec).with_context(|| format!("reading {spec}"))?;
+        let bytes = scene::files::read(Path::new(spec), scene::files::FileKind::Text)?;
+        let text = String::from_utf8(bytes)
+            .map_err(|_| anyhow::anyhow!("{spec}: not UTF-8 text (expected a camera JSON file)"))?;
         let doc: CameraDoc = serde_json::from_str(&text).map_err(|e| {
             anyhow::anyhow!("{spec}: not a camera (the scene.json camera object): {e}")
         })?;

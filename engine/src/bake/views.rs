@@ -110,8 +110,10 @@ impl ViewData {
 /// Keep in step with `DEPTH_EPS` in views.glsl.
 pub const DEPTH_EPS: f32 = 0.02;
 
-/// The views' buffers on the GPU.
+/// The views' buffers on the GPU. Shaders read them through device addresses (views.glsl), which
+/// one small uniform buffer, `addresses`, holds.
 pub struct GpuViews {
+    pub addresses: Buffer,
     pub cameras: Buffer,
     pub pos: Buffer,
     pub nrm: Buffer,
@@ -126,12 +128,27 @@ pub struct GpuViews {
 impl GpuViews {
     pub fn upload(gpu: &Arc<Gpu>, d: &ViewData) -> Result<GpuViews> {
         let u = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let ua = u | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let cams: Vec<GpuCamera> = d.cameras.iter().map(|c| c.to_gpu(NEAR, FAR)).collect();
+        let cameras = Buffer::from_slice(gpu, "view cameras", ua, &cams)?;
+        let pos = Buffer::from_slice(gpu, "view positions", ua, &d.pos)?;
+        let nrm = Buffer::from_slice(gpu, "view normals", ua, &d.nrm)?;
+        let img = Buffer::from_slice(gpu, "view images", ua, &d.img)?;
+        let addresses: Vec<u64> = [&cameras, &pos, &nrm, &img]
+            .iter()
+            .map(|b| b.address)
+            .collect();
         Ok(GpuViews {
-            cameras: Buffer::from_slice(gpu, "view cameras", u, &cams)?,
-            pos: Buffer::from_slice(gpu, "view positions", u, &d.pos)?,
-            nrm: Buffer::from_slice(gpu, "view normals", u, &d.nrm)?,
-            img: Buffer::from_slice(gpu, "view images", u, &d.img)?,
+            addresses: Buffer::from_slice(
+                gpu,
+                "view addresses",
+                vk::BufferUsageFlags::UNIFORM_BUFFER,
+                &addresses,
+            )?,
+            cameras,
+            pos,
+            nrm,
+            img,
             tri: Buffer::from_slice(gpu, "view triangles", u, &d.tri)?,
             count: d.cameras.len() as u32,
             width: d.width,
@@ -139,14 +156,9 @@ impl GpuViews {
         })
     }
 
-    /// The four bindings of views.glsl starting at `base`.
-    pub fn binds(&self, base: u32) -> [(u32, Bind<'_>); 4] {
-        [
-            (base, Bind::Buffer(&self.cameras)),
-            (base + 1, Bind::Buffer(&self.pos)),
-            (base + 2, Bind::Buffer(&self.nrm)),
-            (base + 3, Bind::Buffer(&self.img)),
-        ]
+    /// The binding of views.glsl (`VIEWS_BINDING` = `base`).
+    pub fn binds(&self, base: u32) -> [(u32, Bind<'_>); 1] {
+        [(base, Bind::Buffer(&self.addresses))]
     }
 }
 

@@ -31,26 +31,40 @@ pub(crate) struct SceneDoc {
 
 /// What a synthetic scene adds to the format (`tools/scenegen` writes it, `tools/groundtruth`
 /// renders it): the true objects and materials, the lighting conditions, the test views and
-/// where their ground truth lives. Real captures have none of this.
+/// where their ground truth lives. Real captures have none of this. Every field may be left out
+/// (a hand-written scene often gives only `test_views` and `ground_truth`); what needs a field
+/// says so when it is missing.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Synthetic {
+    #[serde(default)]
     pub seed: u64,
     /// The true geometry, one mesh per material assignment.
+    #[serde(default)]
     pub objects: Vec<ObjectDoc>,
+    #[serde(default)]
     pub materials: BTreeMap<String, MaterialDoc>,
     /// Lighting conditions: the original one and one per extra light, each a set of lights at
     /// intensity 1 (§6). Their renders mix linearly.
+    #[serde(default)]
     pub conditions: Vec<ConditionDoc>,
     /// Novel views sampled along the test path, with ground truth but no input image.
+    #[serde(default)]
     pub test_views: Vec<TestViewDoc>,
-    /// The test camera path (keyframes), relative to the scene directory.
+    /// The test camera path (keyframes), relative to the scene directory ("": none).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
     pub test_path: String,
     /// Ground truth directory: `<dir>/<condition>/<view>.{total,diffuse,glossy}.exr` and
     /// `<dir>/aov/<view>.{albedo,normal,depth}.exr`.
+    #[serde(default = "default_ground_truth")]
     pub ground_truth: String,
     /// How the proxy mesh was degraded from the true one.
+    #[serde(default)]
     pub proxy: serde_json::Value,
+}
+
+fn default_ground_truth() -> String {
+    "gt".into()
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]

@@ -4,12 +4,12 @@
 //! ```json
 //! { "interpolation": "catmull-rom" | "linear",
 //!   "keyframes": [ { "time": 0.0, "position": [x, y, z], "look_at": [x, y, z], "fov_deg": 70 },
-//!                  { "time": 2.0, "position": [...], "rotation": [[right], [down], [forward]],
-//!                    "fov_deg": 60 } ],
+//!                  { "time": 2.0, "position": [...], "look_at": [...], "fov_deg": 60 } ],
 //!   "lighting": [ { "time": 0.0, "dim": 0.0, "intensities": { "lamp": 1.0 },
 //!                   "moves": { "lamp": [dx, dy, dz] } } ] }
 //! ```
-//! Positions and look-at points follow a uniform Catmull-Rom spline through the
+//! Every keyframe gives `look_at`, or every one gives `rotation` ([[right], [down], [forward]],
+//! as scene.json's). Positions and look-at points follow a uniform Catmull-Rom spline through the
 //! keyframes (ends clamped), or straight lines; rotations are slerped; the field of view
 //! (horizontal, degrees) and the lighting are interpolated linearly. Missing intensities are 0.
 //! `moves` displaces an added light from its place in the scene (metres, world axes), also
