@@ -143,3 +143,192 @@ fn readme_camera_path_loads() {
     let c = path.camera_at(4.0, 64, 48);
     assert!((c.rotation.determinant() - 1.0).abs() < 1e-5);
 }
+
+/// What a loader says about one malformed input: it must fail (not panic, not accept) and name
+/// `file` and `expect`.
+fn refused(what: &str, r: std::thread::Result<Result<(), String>>, file: &str, expect: &str) {
+    let e = match r {
+        Err(_) => panic!("{what}: the loader panicked"),
+        Ok(Ok(())) => panic!("{what}: accepted (expected an error with \"{expect}\")"),
+        Ok(Err(e)) => e,
+    };
+    assert!(e.contains(file) && e.contains(expect), "{what}: {e}");
+}
+
+/// Malformed variants of the README's scene.json (each one edit), camera file and camera path,
+/// plus paths that are not what they claim: every one refused with the file and the problem.
+#[test]
+fn malformed_hand_written_files_are_refused_by_field() {
+    let base = example("scene.json");
+    let scene_cases: &[(&str, &str, &str, &str)] = &[
+        ("version", "\"version\": 1", "\"version\": 2", "version"),
+        ("duplicate view", "\"name\": \"001\"", "\"name\": \"000\"", "000"),
+        ("negative radiance", "[20, 14, 8]", "[20, -14, 8]", "radiance"),
+        ("huge radiance", "[20, 14, 8]", "[20, 1e39, 8]", "radiance"),
+        ("dim out of range", "\"dim\": 0.5", "\"dim\": 1.5", "dim"),
+        ("negative intensity", "{ \"lamp\": 1.0 }", "{ \"lamp\": -1.0 }", "lamp"),
+        ("preset of an unknown light", "{ \"lamp\": 1.0 }", "{ \"lamb\": 1.0 }", "lamb"),
+        ("zero quad edge", "\"edge_u\": [0, 0, 0.6]", "\"edge_u\": [0, 0, 0]", "ceiling"),
+        ("camera both ways", "\"look_at\": [0.5, 1.0, -0.5]", "\"look_at\": [0.5, 1.0, -0.5], \"rotation\": [[1,0,0],[0,1,0],[0,0,1]]", "rotation"),
+        ("test view look_at at its position", "\"look_at\": [0, 1, -1]", "\"look_at\": [0.2, 1.4, 1.0]", "look_at"),
+        ("unknown synthetic field", "\"ground_truth\": \"gt\"", "\"ground_truth\": \"gt\", \"seeds\": 3", "seeds"),
+        ("negative focal length", "\"fx\": 40.1, \"fy\": 40.1, \"cx\": 32, \"cy\": 24,\n                  \"position\": [-1.0", "\"fx\": -40.1, \"fy\": 40.1, \"cx\": 32, \"cy\": 24,\n                  \"position\": [-1.0", "fx"),
+    ];
+    for (i, (what, from, to, expect)) in scene_cases.iter().enumerate() {
+        let dir = scene_dir(&format!("hostile-scene-{i}"));
+        assert!(base.contains(from), "{what}: the example has no {from:?}");
+        std::fs::write(dir.join("scene.json"), base.replacen(from, to, 1)).unwrap();
+        let r = std::panic::catch_unwind(|| {
+            let s = Scene::load(&dir).map_err(|e| e.to_string())?;
+            // Test views are cameras too: render --camera NAME builds them.
+            for t in &s.synthetic.as_ref().unwrap().test_views {
+                t.camera
+                    .to_camera(&dir.join("scene.json"), &t.name)
+                    .map_err(|e| e.to_string())?;
+            }
+            Ok(())
+        });
+        refused(what, r, "scene.json", expect);
+    }
+
+    let cam = example("camera");
+    let camera_cases: &[(&str, &str, &str, &str)] = &[
+        (
+            "look_at parallel to up",
+            "\"look_at\": [-0.5, 0.8, -1.0]",
+            "\"look_at\": [0.5, 0.5, 1.8], \"up\": [0, 1, 0]",
+            "parallel",
+        ),
+        (
+            "no orientation",
+            ", \"look_at\": [-0.5, 0.8, -1.0]",
+            "",
+            "rotation",
+        ),
+        ("zero height", "\"height\": 192", "\"height\": 0", "height"),
+        (
+            "unknown field",
+            "\"cy\": 96",
+            "\"cy\": 96, \"k1\": 0.1",
+            "k1",
+        ),
+    ];
+    for (what, from, to, expect) in camera_cases {
+        assert!(cam.contains(from), "{what}: the example has no {from:?}");
+        let text = cam.replacen(from, to, 1);
+        let r = std::panic::catch_unwind(|| {
+            let doc: CameraDoc =
+                serde_json::from_str(&text).map_err(|e| format!("camera.json: {e}"))?;
+            doc.to_camera(Path::new("camera.json"), "camera")
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        });
+        refused(what, r, "camera.json", expect);
+    }
+
+    let path = example("path");
+    let path_cases: &[(&str, &str, &str, &str)] = &[
+        ("dim above 1", "\"dim\": 0.5", "\"dim\": 2", "dim"),
+        (
+            "zero field of view",
+            "\"fov_deg\": 70",
+            "\"fov_deg\": 0",
+            "fov_deg",
+        ),
+        (
+            "times out of order",
+            "\"time\": 4, \"position\"",
+            "\"time\": -1, \"position\"",
+            "time",
+        ),
+        (
+            "lighting times out of order",
+            "\"time\": 2, \"dim\"",
+            "\"time\": 0, \"dim\"",
+            "lighting[1]",
+        ),
+        (
+            "look_at mixed with rotation",
+            "\"look_at\": [0.2, 1.2, -2.5]",
+            "\"rotation\": [[1, 0, 0], [0, -1, 0], [0, 0, -1]]",
+            "every keyframe",
+        ),
+        (
+            "unknown interpolation",
+            "\"catmull-rom\"",
+            "\"cubic\"",
+            "interpolation",
+        ),
+        (
+            "no keyframes",
+            "\"keyframes\": [",
+            "\"keyframes\": [], \"unused\": [",
+            "unused",
+        ),
+    ];
+    let dir = common::tempdir("hostile-path");
+    for (i, (what, from, to, expect)) in path_cases.iter().enumerate() {
+        assert!(path.contains(from), "{what}: the example has no {from:?}");
+        let file = dir.join(format!("path{i}.json"));
+        std::fs::write(&file, path.replacen(from, to, 1)).unwrap();
+        let r = std::panic::catch_unwind(|| {
+            CameraPath::load(&file)
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        });
+        refused(what, r, &format!("path{i}.json"), expect);
+    }
+    let file = dir.join("empty.json");
+    std::fs::write(&file, "{ \"keyframes\": [] }").unwrap();
+    let r = std::panic::catch_unwind(|| {
+        CameraPath::load(&file)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    });
+    refused("no keyframes at all", r, "empty.json", "at least one");
+}
+
+/// Paths that are not what they claim get a message that says what they are.
+#[test]
+fn paths_that_are_not_files_say_what_they_are() {
+    use std::os::unix::fs::symlink;
+    let dir = scene_dir("hostile-links");
+    // The mesh a symlink loop, then a dangling link.
+    std::fs::remove_file(dir.join("mesh.ply")).unwrap();
+    symlink("mesh.ply", dir.join("mesh.ply")).unwrap();
+    let e = Scene::load(&dir).err().unwrap().to_string();
+    assert!(e.contains("mesh.ply") && e.contains("symlink loop"), "{e}");
+    std::fs::remove_file(dir.join("mesh.ply")).unwrap();
+    symlink("gone.ply", dir.join("mesh.ply")).unwrap();
+    let e = Scene::load(&dir).err().unwrap().to_string();
+    assert!(e.contains("mesh.ply") && e.contains("dangling"), "{e}");
+    // A scene "directory" below a file.
+    let e = Scene::load(&dir.join("scene.json/inner"))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("not a directory"), "{e}");
+    let e = Scene::load(&dir.join("nowhere")).err().unwrap().to_string();
+    assert!(e.contains("nowhere") && e.contains("does not exist"), "{e}");
+}
+
+/// A buffer the device cannot hold is refused in the user's terms (its name, its size, what to
+/// change), not the allocator's ("Invalid AllocationCreateDesc").
+#[test]
+fn an_impossible_allocation_names_the_buffer_and_its_size() {
+    use relit_engine::gpu::{vk, Buffer, MemoryLocation};
+    let gpu = common::gpu();
+    let e = Buffer::new(
+        &gpu,
+        "test views",
+        1 << 44,
+        vk::BufferUsageFlags::TRANSFER_SRC,
+        MemoryLocation::GpuOnly,
+    )
+    .err()
+    .unwrap()
+    .to_string();
+    assert!(e.contains("test views") && e.contains("MiB"), "{e}");
+    assert!(!e.contains("AllocationCreateDesc"), "{e}");
+    common::assert_no_validation_errors(&gpu);
+}

@@ -83,13 +83,15 @@ impl Gpu {
         let alloc = guard
             .as_mut()
             .ok_or_else(|| Error::Other("allocator gone".into()))?;
-        Ok(alloc.allocate(&AllocationCreateDesc {
-            name,
-            requirements: req,
-            location,
-            linear,
-            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-        })?)
+        alloc
+            .allocate(&AllocationCreateDesc {
+                name,
+                requirements: req,
+                location,
+                linear,
+                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+            })
+            .map_err(|e| allocation_error(name, req.size, e))
     }
 
     fn free(&self, a: Allocation) {
@@ -188,7 +190,7 @@ impl Buffer {
                 None,
             )
         }
-        .vk("create buffer")?;
+        .map_err(|r| creation_error(name, size, r))?;
         let req = unsafe { d.get_buffer_memory_requirements(raw) };
         let alloc = match gpu.allocate(name, req, location, true) {
             Ok(a) => a,
@@ -453,7 +455,14 @@ impl Image {
                 None,
             )
         }
-        .vk("create image")?;
+        .map_err(|r| {
+            let texel = 16u64; // the widest format the engine uses (RGBA32F)
+            creation_error(
+                name,
+                width as u64 * height as u64 * layers as u64 * texel,
+                r,
+            )
+        })?;
         let req = unsafe { d.get_image_memory_requirements(raw) };
         let alloc = match gpu.allocate(name, req, MemoryLocation::GpuOnly, false) {
             Ok(a) => a,
@@ -601,5 +610,41 @@ impl Drop for Image {
         if let Some(a) = self.alloc.take() {
             self.gpu.free(a);
         }
+    }
+}
+
+/// An allocation failure in the user's terms: which resource, how big, and what to change
+/// (gpu-allocator's own words, such as "Invalid AllocationCreateDesc", name none of these).
+fn allocation_error(name: &str, size: u64, e: gpu_allocator::AllocationError) -> Error {
+    use gpu_allocator::AllocationError as A;
+    let mib = size as f64 / 1048576.0;
+    let why = match e {
+        A::OutOfMemory => "the device is out of memory".to_string(),
+        A::InvalidAllocationCreateDesc | A::NoCompatibleMemoryTypeFound => {
+            "no memory of the kind it needs can hold it (too large for the device)".to_string()
+        }
+        other => format!("the allocator refused it ({other})"),
+    };
+    Error::Device(format!(
+        "cannot allocate \"{name}\" ({mib:.1} MiB): {why}; use a smaller resolution, fewer views \
+         or fp16 storage"
+    ))
+}
+
+/// A failed vkCreateBuffer/vkCreateImage: out-of-memory results in the user's terms, others as
+/// Vulkan reports them.
+fn creation_error(name: &str, size: u64, r: vk::Result) -> Error {
+    match r {
+        vk::Result::ERROR_OUT_OF_DEVICE_MEMORY | vk::Result::ERROR_OUT_OF_HOST_MEMORY => {
+            Error::Device(format!(
+                "cannot create \"{name}\" (about {:.1} MiB): the device is out of memory; use a \
+                 smaller resolution, fewer views or fp16 storage",
+                size as f64 / 1048576.0
+            ))
+        }
+        result => Error::Vk {
+            what: "create buffer or image",
+            result,
+        },
     }
 }

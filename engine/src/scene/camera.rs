@@ -114,7 +114,7 @@ impl Camera {
     pub fn validate(&self) -> Result<(), String> {
         if self.width == 0 || self.height == 0 {
             return Err(format!(
-                "image size {}x{} must be positive",
+                "image size {}x{}: width and height must be positive",
                 self.width, self.height
             ));
         }

@@ -59,10 +59,40 @@ fn what_it_is(t: std::fs::FileType) -> &'static str {
     }
 }
 
+/// Why `path` cannot be opened as what was expected, in words: it does not exist, it is a
+/// dangling symlink or a symlink loop, a parent is not a directory, or what it is instead.
+pub fn describe_missing(path: &Path) -> String {
+    match std::fs::metadata(path) {
+        Ok(m) => format!("it is {}", what_it_is(m.file_type())),
+        Err(e) if e.raw_os_error() == Some(40) => {
+            "it is a symlink loop (too many levels of symbolic links)".into()
+        }
+        Err(e) if e.raw_os_error() == Some(20) => "a parent in its path is not a directory".into(),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            if std::fs::symlink_metadata(path).is_ok() {
+                "it is a symlink to nothing (a dangling link)".into()
+            } else {
+                "it does not exist".into()
+            }
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::PermissionDenied => "permission denied".into(),
+        Err(e) => e.to_string(),
+    }
+}
+
 /// Checks that `path` is a regular file (after symlinks) within `kind`'s size limit; returns
 /// its size. Errors name the file, what it is instead, or its size against the limit.
 pub fn check(path: &Path, kind: FileKind) -> Result<u64> {
-    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    let meta = std::fs::metadata(path).map_err(|_| {
+        Error::input(
+            path,
+            format!(
+                "cannot open the {}: {}",
+                kind.name(),
+                describe_missing(path)
+            ),
+        )
+    })?;
     if !meta.file_type().is_file() {
         return Err(Error::input(
             path,

@@ -280,7 +280,7 @@ impl Scene {
         if !path.is_dir() {
             return Err(Error::input(
                 path,
-                "not a scene directory (it does not exist or is not a directory)",
+                format!("not a scene directory: {}", files::describe_missing(path)),
             ));
         }
         match detect(path) {
