@@ -480,3 +480,26 @@ fn gemm_portable_matches_cpu_and_coop_matrix_module_is_built() {
     assert!(e < 1e-4, "{:?} gemm: max difference {e}", sel.backend);
     common::assert_no_validation_errors(&gpu);
 }
+
+/// The storage-access probe behind `relit bench gather`: both ways of reading the table give the
+/// CPU reference's sums (exact: 16 small integers and binary fractions per lane).
+#[test]
+fn gather_probe_matches_cpu_both_ways() {
+    use relit_engine::gpu::gather::{reference, Access, GatherProbe};
+    let gpu = common::gpu();
+    let table: Vec<[f32; 4]> = (0..1024)
+        .map(|i| [i as f32, 1.0, 0.5, (i % 7) as f32])
+        .collect();
+    let probe = GatherProbe::new(&gpu, &table, 1000).unwrap();
+    let want = reference(&table, 1000);
+    for access in [Access::StorageBuffer, Access::DeviceAddress] {
+        let (got, ms) = probe.run(access).unwrap();
+        assert_eq!(&got[..1000], &want[..], "{access:?}");
+        assert!(ms.is_finite() && ms >= 0.0);
+    }
+    assert!(
+        GatherProbe::new(&gpu, &table[..1000], 10).is_err(),
+        "not a power of two"
+    );
+    common::assert_no_validation_errors(&gpu);
+}

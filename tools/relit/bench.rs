@@ -104,6 +104,21 @@ pub enum BenchCmd {
         #[arg(long)]
         torch: bool,
     },
+    /// Storage access: the same gather kernel (16 loads per invocation at indices that differ
+    /// per invocation) reading its table through a storage-buffer binding and through a
+    /// buffer-device-address pointer; ms per dispatch and loads per second for each.
+    Gather {
+        /// Invocations per dispatch.
+        #[arg(long, default_value_t = 1 << 20)]
+        count: u32,
+        /// Table length (a power of two; 16 bytes each). The default fits the CPU's L2 cache, so
+        /// the loads' instructions show, not the memory.
+        #[arg(long, default_value_t = 1 << 12)]
+        table: u32,
+        /// Timed dispatches per variant (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        repeats: u32,
+    },
 }
 
 pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
@@ -120,6 +135,11 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             quality,
         } => bake_bench(scene, *views, *quality, opts),
         BenchCmd::Bc6h { cache, maps } => bc6h_bench(cache, *maps, opts),
+        BenchCmd::Gather {
+            count,
+            table,
+            repeats,
+        } => gather_bench(*count, *table, *repeats, opts),
         BenchCmd::Light {
             scene,
             res,
@@ -203,6 +223,35 @@ fn bumpy_room() -> Mesh {
         }
     }
     m
+}
+
+fn gather_bench(count: u32, table: u32, repeats: u32, opts: &GpuOptions) -> Result<()> {
+    use relit_engine::gpu::gather::{Access, GatherProbe, LOADS};
+    if !table.is_power_of_two() {
+        anyhow::bail!("--table {table}: expected a power of two");
+    }
+    let gpu = crate::open_gpu(opts)?;
+    println!("device: {}", gpu.caps.name);
+    let data: Vec<[f32; 4]> = (0..table).map(|i| [i as f32, 1.0, 0.5, 0.25]).collect();
+    let probe = GatherProbe::new(&gpu, &data, count)?;
+    println!("{count} invocations x {LOADS} vec4 loads from a {table}-entry table");
+    let mut first = None;
+    for access in [Access::StorageBuffer, Access::DeviceAddress] {
+        // The first dispatch compiles the shader on lavapipe: warm up untimed.
+        let (sums, _) = probe.run(access)?;
+        let times = (0..repeats.max(1))
+            .map(|_| probe.run(access).map(|r| r.1))
+            .collect::<relit_engine::Result<Vec<f64>>>()?;
+        let ms = median(times);
+        let loads = count as f64 * LOADS as f64 / (ms * 1e-3);
+        println!("{access:?}: {ms:.2} ms, {:.1} M loads/s", loads / 1e6);
+        match &first {
+            None => first = Some(sums),
+            Some(f) if *f != sums => anyhow::bail!("the two variants disagree"),
+            Some(_) => {}
+        }
+    }
+    Ok(())
 }
 
 fn rays_bench(

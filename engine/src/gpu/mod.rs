@@ -3,6 +3,7 @@
 
 mod accel;
 mod device;
+pub mod gather;
 mod memory;
 mod pipeline;
 mod timer;
