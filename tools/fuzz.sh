@@ -13,10 +13,13 @@ command -v cargo-fuzz >/dev/null 2>&1 || cargo install -q cargo-fuzz --locked
 export CARGO_TARGET_DIR="${RELIT_FUZZ_TARGET:-$HOME/.cache/relit/fuzz-target}"
 cargo fuzz build --fuzz-dir tools/fuzz -s none
 work="$HOME/.cache/relit/fuzz-corpus"
+# The targets write their inputs as files under $TMPDIR: give them a directory that goes away.
+scratch="$(mktemp -d)"
+trap 'rm -rf "$scratch"' EXIT
 for t in scene_json colmap bundler mesh_obj mesh_ply image camera_path weights; do
   mkdir -p "$work/$t"
   log="$(mktemp)"
-  if ! cargo fuzz run --fuzz-dir tools/fuzz -s none "$t" "$work/$t" "tools/fuzz/corpus/$t" -- \
+  if ! TMPDIR="$scratch" cargo fuzz run --fuzz-dir tools/fuzz -s none "$t" "$work/$t" "tools/fuzz/corpus/$t" -- \
       -max_total_time="$secs" -timeout=10 -rss_limit_mb=2048 >"$log" 2>&1; then
     grep -v '^#' "$log" | tail -40
     echo "fuzz: $t failed (input in tools/fuzz/artifacts/$t/)" >&2
