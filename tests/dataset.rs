@@ -86,6 +86,14 @@ fn dataset_builds_resumes_and_its_samples_mix_any_lighting_as_the_engine_does() 
         std::fs::read(&view_sample).unwrap() == bytes,
         "a remade sample differs"
     );
+    // The same dataset with denoised targets would mix two kinds of ground truth: refused.
+    let mut denoised = args.clone();
+    denoised.push("--denoise");
+    let (good, text) = relit(&denoised);
+    assert!(
+        !good && text.contains("scene_01000") && text.contains("raw targets"),
+        "{text}"
+    );
 
     // The trainer's assembly of a lighting equals the engine's frame under that lighting, on
     // a novel camera and on an input view (left out of its own inputs in both).

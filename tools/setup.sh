@@ -50,7 +50,7 @@ fi
 
 # Ground-truth renderer (tools/groundtruth): Mitsuba 3 and numpy from PyPI.
 here="$(cd "$(dirname "$0")" && pwd)"
-if ! python3 -c "import mitsuba, numpy" >/dev/null 2>&1; then
+if ! python3 -c "import mitsuba, numpy, pyoidn" >/dev/null 2>&1; then
   python3 -m pip install -q --root-user-action=ignore -r "$here/groundtruth/requirements.txt"
 fi
 

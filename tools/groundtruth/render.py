@@ -15,6 +15,13 @@ For every camera (capture views and test views) and lighting condition of a scen
 and the input photographs images/<view>.exr = the total radiance under the original lighting.
 
 Usage: render.py SCENE_DIR [--spp N] [--only inputs|aov|all] [--views a,b] [--conditions a,b]
+                 [--denoise]
+
+--denoise runs Intel Open Image Denoise (pyoidn) on the targets (total and diffuse, guided by the
+albedo and normal AOVs; glossy stays their difference). Measured on a validation scene (4 test
+views at 128x96, a lamp's condition, against 1024 spp, in the trainer's tonemapped space): 64 spp
++ OIDN gives the glossy part 37.5 dB on glossy pixels for 6.8 s, 256 spp alone 38.2 dB for 22.9 s,
+64 spp alone 33.4 dB.
 """
 
 import argparse
@@ -295,7 +302,23 @@ def views_of(doc, scene_path):
     return out
 
 
-def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed=0, log=print):
+def denoiser(gt):
+    """Denoises a target with Intel Open Image Denoise (pyoidn), guided by the view's albedo and
+    normal AOVs (rendered first, at 1 spp, so not clean): HDR, linear, float32."""
+    import pyoidn
+
+    def run(name, img):
+        alb = np.clip(read_exr(os.path.join(gt, "aov", f"{name}.albedo.exr")), 0.0, 1.0)
+        nrm = np.clip(read_exr(os.path.join(gt, "aov", f"{name}.normal.exr")), -1.0, 1.0)
+        img = np.ascontiguousarray(np.maximum(img[:, :, :3], 0.0), dtype=np.float32)
+        return pyoidn.denoise(img, alb, nrm, hdr=True)
+    return run
+
+
+def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed=0, log=print,
+               denoise=False):
+    """Renders the ground truth. With `denoise`, the targets (total and diffuse; glossy is their
+    difference) are denoised with OIDN; the input photographs and mirror images are not."""
     scene_path, doc = load_description(scene_dir)
     syn = doc["synthetic"]
     gt = os.path.join(scene_dir, syn["ground_truth"])
@@ -325,6 +348,7 @@ def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed
             write_exr(os.path.join(gt, "aov", f"{name}.normal.exr"), img[:, :, 3:6])
             z = np.where(img[:, :, 6] > 0, img[:, :, 6] / norm + NEAR_CLIP, 0.0)
             write_exr(os.path.join(gt, "aov", f"{name}.depth.exr"), z[:, :, None])
+    dn = denoiser(gt) if denoise and only == "all" else None
     if only in ("all", "inputs"):
         diffuse = mi.load_dict({"type": "diffuse_first_bounce", "max_depth": MAX_DEPTH})
         mirror = mi.load_dict({"type": "mirror_first_bounce", "max_depth": MAX_DEPTH})
@@ -341,6 +365,8 @@ def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed
                 if only == "inputs":
                     continue
                 diff = np.array(mi.render(s, integrator=diffuse, sensor=i, spp=spp, seed=seed + 2 * i + 1))
+                if dn is not None:
+                    total, diff = dn(name, total), dn(name, diff)
                 write_exr(os.path.join(out, f"{name}.total.exr"), total)
                 write_exr(os.path.join(out, f"{name}.diffuse.exr"), diff)
                 write_exr(os.path.join(out, f"{name}.glossy.exr"), total - diff)
@@ -359,11 +385,14 @@ def main():
     ap.add_argument("--views", help="comma-separated view names")
     ap.add_argument("--conditions", help="comma-separated condition names")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--denoise", action="store_true",
+                    help="denoise the targets with Intel Open Image Denoise (pyoidn)")
     a = ap.parse_args()
     try:
         t = render_all(a.scene, a.spp, a.only,
                        a.views.split(",") if a.views else None,
-                       a.conditions.split(",") if a.conditions else None, a.seed)
+                       a.conditions.split(",") if a.conditions else None, a.seed,
+                       denoise=a.denoise)
     except SceneError as e:
         print(f"error: {e}", file=sys.stderr)
         sys.exit(1)

@@ -85,6 +85,27 @@ class GroundTruth(unittest.TestCase):
             self.doc = saved
         self.assertLess(abs(d.mean() - t.mean()) / t.mean(), 0.03)
 
+    def test_denoised_targets_are_closer_to_many_samples(self):
+        d = make_scene(self.tmp, seed=8)
+        quiet = dict(views=["test000"], conditions=["original"], log=lambda *_: None)
+        out = os.path.join(d, "gt", "original")
+
+        def targets():
+            return [render.read_exr(os.path.join(out, f"test000.{k}.exr")) for k in ("total", "diffuse", "glossy")]
+        render.render_all(d, spp=1024, seed=11, **quiet)
+        ref = targets()
+        render.render_all(d, spp=4, **quiet)
+        raw = targets()
+        render.render_all(d, spp=4, denoise=True, **quiet)
+        dn = targets()
+        # The trainer's tonemapped space (samples.tonemap, mu = 64).
+        tm = lambda x: np.log1p(64.0 * np.maximum(x, 0.0)) / np.log1p(64.0)
+        err = lambda a, b: float(np.sqrt(np.mean((tm(a) - tm(b)) ** 2)))
+        for k, name in enumerate(("total", "diffuse")):
+            self.assertLess(err(dn[k], ref[k]), 0.8 * err(raw[k], ref[k]), name)
+        # glossy stays the difference of the denoised total and diffuse (half precision).
+        np.testing.assert_allclose(dn[1] + dn[2], dn[0], rtol=2e-3, atol=2e-3)
+
     def test_lambertian_plane_matches_closed_form(self):
         rho, L = 0.5, 10.0
         # A 1 m x 0.6 m light 1 m above a large plane, facing down.

@@ -7,8 +7,7 @@ use std::sync::Arc;
 
 use half::f16;
 
-use super::gemm::coop_spec;
-use super::{backend_for, Backend};
+use super::{backend_for, coop_spec, Backend};
 use crate::error::{Error, Result};
 use crate::gpu::{bytes_of, full_barrier, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline};
 

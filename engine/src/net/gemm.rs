@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use half::f16;
 
-use super::{backend_for, coop_tile, Backend, Storage};
+use super::{backend_for, coop_spec, Backend, Storage};
 use crate::error::{Error, Result};
 use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline};
 
@@ -81,15 +81,4 @@ impl Gemm {
         c.truncate((m * n) as usize);
         Ok(c)
     }
-}
-
-/// The specialization constants of a `*_cm.comp` kernel on this device, or why it cannot run.
-pub(super) fn coop_spec(gpu: &Gpu) -> Result<[u32; 4]> {
-    coop_tile(&gpu.caps).map(|t| t.spec()).ok_or_else(|| {
-        Error::Other(format!(
-            "{} offers no cooperative-matrix shape the network kernels fit (fp16 A/B, fp32 \
-             accumulators, subgroup scope, sides dividing 16)",
-            gpu.caps.name
-        ))
-    })
 }

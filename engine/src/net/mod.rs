@@ -13,7 +13,8 @@ pub use conv::{
 pub use gemm::Gemm;
 pub use model::{NetBuffers, NetConfig, Network, Params, RandomParams, SafetensorsParams};
 
-use crate::gpu::{vk, Caps};
+use crate::error::{Error, Result};
+use crate::gpu::{vk, Caps, Gpu};
 
 /// Channels of the network input (§5: 8 + 8 composites, target mirror, 3 irradiance composites
 /// and 6 extra features; the order is in `frame::features`).
@@ -102,4 +103,15 @@ pub fn describe_backend(caps: &Caps, storage: Storage) -> String {
         }
         _ => "portable".into(),
     }
+}
+
+/// The specialization constants of a `*_cm.comp` kernel on this device, or why it cannot run.
+fn coop_spec(gpu: &Gpu) -> Result<[u32; 4]> {
+    coop_tile(&gpu.caps).map(|t| t.spec()).ok_or_else(|| {
+        Error::Other(format!(
+            "{} offers no cooperative-matrix shape the network kernels fit (fp16 A/B, fp32 \
+             accumulators, subgroup scope, sides dividing 16)",
+            gpu.caps.name
+        ))
+    })
 }
