@@ -41,8 +41,21 @@ pub fn assert_no_validation_errors(gpu: &Gpu) {
     );
 }
 
+/// A fresh scratch directory for one test: `$TMPDIR/relit-tests/<pid>/<name>`. The first call
+/// in a process removes the directories of test processes that no longer run, so runs do not
+/// pile up in /tmp.
 pub fn tempdir(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("relit-test-{}-{name}", std::process::id()));
+    let root = std::env::temp_dir().join("relit-tests");
+    static SWEEP: std::sync::Once = std::sync::Once::new();
+    SWEEP.call_once(|| {
+        for e in std::fs::read_dir(&root).into_iter().flatten().flatten() {
+            let pid = e.file_name().to_string_lossy().parse::<u32>().ok();
+            if pid.is_some_and(|p| !std::path::Path::new(&format!("/proc/{p}")).exists()) {
+                let _ = std::fs::remove_dir_all(e.path());
+            }
+        }
+    });
+    let d = root.join(std::process::id().to_string()).join(name);
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
