@@ -378,6 +378,33 @@ fn surface_cache_matches_cpu_reference() {
             c.iter().any(|v| v[0] > 0.0),
             "indirect light must reach the cache"
         );
+        // List mode (what the live lights refine first): every 7th texel traced alone gets
+        // the whole run's value, and the rest of the output is left as it was.
+        let n = layout.texels();
+        let list: Vec<u32> = (0..n as u32).step_by(7).collect();
+        let u = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let lb = Buffer::from_slice(&gpu, "list", u, &list).unwrap();
+        let out = Buffer::from_slice(&gpu, "out", u, &vec![[-1f32; 4]; n]).unwrap();
+        let mut r = Ok(());
+        gpu.submit(|cmd| {
+            r = pass.record_list(cmd, &rs, &gl, &ab, &l, p, &lb, list.len() as u32, &out)
+        })
+        .unwrap();
+        r.unwrap();
+        let got: Vec<[f32; 4]> = out.download_vec().unwrap();
+        for (t, v) in got.iter().enumerate() {
+            if t % 7 == 0 {
+                for k in 0..3 {
+                    assert!(
+                        (v[k] - g[t][k]).abs() <= 1e-5 * g[t][k].abs().max(1e-3),
+                        "texel {t}: {v:?} vs {:?}",
+                        g[t]
+                    );
+                }
+            } else {
+                assert_eq!(*v, [-1.0; 4], "texel {t} is not in the list");
+            }
+        }
     }
     common::assert_no_validation_errors(&gpu);
 }

@@ -523,6 +523,21 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
     };
     r.set_live_light(1, &moved).unwrap();
     assert!(r.refine_live().unwrap() && r.refine_live().unwrap());
+    // The texels the last frame showed were refined first: 2 steps of 2 paths each on them,
+    // none yet elsewhere.
+    let tri = r.buffers_ref().unwrap().gbuf.download().unwrap().tri;
+    let shown = r.live.texels_shown(&tri);
+    let paths = r.live.texel_paths(1).unwrap();
+    let p = r.live.params.paths_per_step;
+    assert!(!shown.is_empty() && shown.len() < paths.len());
+    for (i, &n) in paths.iter().enumerate() {
+        let want = if shown.binary_search(&(i as u32)).is_ok() {
+            2 * p
+        } else {
+            0
+        };
+        assert_eq!(n, want, "texel {i}");
+    }
     // A third light, new, near the ceiling.
     let new = Light {
         name: "c".into(),

@@ -24,9 +24,13 @@ layout(set = 0, binding = 3) readonly buffer Albedo { vec4 albedo[]; };
 layout(set = 0, binding = 4) readonly buffer Texels { vec4 texel_pos[]; };
 layout(set = 0, binding = 5) readonly buffer Normals { vec4 texel_nrm[]; };
 layout(set = 0, binding = 6) writeonly buffer Out { vec4 e_ind[]; };
+// With `use_list`, invocation i traces texel texel_list[first + i] (the live lights refine the
+// texels the frame shows first); otherwise texel first + i. Either way the result goes to e_ind
+// at the texel's index.
+layout(set = 0, binding = 7) readonly buffer List { uint texel_list[]; };
 
 layout(push_constant, scalar) uniform Push {
-    uint first; uint count; uint samples; uint seed; uint bounces; uint pad0; uint pad1; uint pad2;
+    uint first; uint count; uint samples; uint seed; uint bounces; uint use_list; uint pad1; uint pad2;
     Light light;
 } pc;
 
@@ -34,8 +38,9 @@ const uint RR_START = 2u;
 const uint MISS_RETRIES = 4u;
 
 void main() {
-    uint t = pc.first + gl_GlobalInvocationID.x;
     if (gl_GlobalInvocationID.x >= pc.count) return;
+    uint t = pc.use_list != 0u ? texel_list[pc.first + gl_GlobalInvocationID.x]
+                               : pc.first + gl_GlobalInvocationID.x;
     vec3 x0 = texel_pos[t].xyz, n0 = texel_nrm[t].xyz;
     vec3 sum = vec3(0.0);
     for (uint s = 0u; s < pc.samples; ++s) {

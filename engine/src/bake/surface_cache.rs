@@ -89,19 +89,27 @@ impl CacheLayout {
 
     /// Smooths cached values along the mesh: `iterations` rounds of averaging each texel with
     /// its neighbours (weighted by normal agreement). The mesh's connectivity keeps the filter
-    /// from mixing surfaces that only lie close, like a table top and the floor under it.
+    /// from mixing surfaces that only lie close, like a table top and the floor under it. A
+    /// value's w is its own weight: 1 for an estimate, 0 for a texel not traced yet, which takes
+    /// its traced neighbours' mean (and stays 0, w = 0, with none).
     pub fn filter(&self, values: &[[f32; 4]], iterations: u32) -> Vec<[f32; 4]> {
         let nb = self.neighbours();
         let mut cur = values.to_vec();
         for _ in 0..iterations {
             cur = (0..cur.len())
                 .map(|i| {
-                    let (mut s, mut w) = (Vec3::from_slice(&cur[i][..3]), 1.0);
+                    let wi = cur[i][3];
+                    let (mut s, mut w) = (wi * Vec3::from_slice(&cur[i][..3]), wi);
                     for &(j, wj) in &nb[i] {
-                        s += wj * Vec3::from_slice(&cur[j as usize][..3]);
-                        w += wj;
+                        let v = cur[j as usize];
+                        s += wj * v[3] * Vec3::from_slice(&v[..3]);
+                        w += wj * v[3];
                     }
-                    (s / w).extend(1.0).into()
+                    if w > 0.0 {
+                        (s / w).extend(1.0).into()
+                    } else {
+                        [0.0; 4]
+                    }
                 })
                 .collect();
         }
@@ -159,7 +167,8 @@ struct Push {
     samples: u32,
     seed: u32,
     bounces: u32,
-    pad: [u32; 3],
+    use_list: u32,
+    pad: [u32; 2],
     light: GpuLight,
 }
 
@@ -191,13 +200,60 @@ impl SurfaceCache {
         count: u32,
         out: &Buffer,
     ) -> Result<()> {
+        self.record_with(cmd, mesh, layout, albedo, light, p, None, first, count, out)
+    }
+
+    /// As [`SurfaceCache::record`] for the texels `list[first..first + count]` (texel indices);
+    /// each result lands at its texel's index in `out`, the rest of `out` is left as it was.
+    #[allow(clippy::too_many_arguments)]
+    pub fn record_list(
+        &self,
+        cmd: vk::CommandBuffer,
+        mesh: &RayScene,
+        layout: &GpuCacheLayout,
+        albedo: &Buffer,
+        light: &GpuLight,
+        p: AddedParams,
+        list: &Buffer,
+        count: u32,
+        out: &Buffer,
+    ) -> Result<()> {
+        self.record_with(
+            cmd,
+            mesh,
+            layout,
+            albedo,
+            light,
+            p,
+            Some(list),
+            0,
+            count,
+            out,
+        )
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn record_with(
+        &self,
+        cmd: vk::CommandBuffer,
+        mesh: &RayScene,
+        layout: &GpuCacheLayout,
+        albedo: &Buffer,
+        light: &GpuLight,
+        p: AddedParams,
+        list: Option<&Buffer>,
+        first: u32,
+        count: u32,
+        out: &Buffer,
+    ) -> Result<()> {
         let push = Push {
             first,
             count,
             samples: p.cache_samples,
             seed: p.seed,
             bounces: p.bounces,
-            pad: [0; 3],
+            use_list: u32::from(list.is_some()),
+            pad: [0; 2],
             light: *light,
         };
         let binds = [
@@ -208,6 +264,8 @@ impl SurfaceCache {
             (4, Bind::Buffer(&layout.pos)),
             (5, Bind::Buffer(&layout.nrm)),
             (6, Bind::Buffer(out)),
+            // Unread without a list; any storage buffer fills the binding.
+            (7, Bind::Buffer(list.unwrap_or(&layout.pos))),
         ];
         self.pipeline
             .dispatch(cmd, &binds, bytes_of(&push), (count, 1, 1))

@@ -2,7 +2,9 @@
 //! viewer. Their E_add is evaluated at the frame's surface points (direct light by next-event
 //! estimation + the light's surface cache), so a light shows where it is at the next frame; the
 //! cache is refined a few paths per texel per call while the light stays put, converging to
-//! what the bake would store. Moving the light again starts its cache over.
+//! what the bake would store. Moving the light again starts its cache over. The texels the last
+//! frame shows are refined first (the focus), the rest of the mesh after them: what the user
+//! looks at converges in a fraction of the time the whole cache takes.
 
 use std::sync::Arc;
 
@@ -52,9 +54,11 @@ impl Default for LiveParams {
 struct Entry {
     layer: u32,
     light: GpuLight,
-    /// Sum of the cache estimates so far, and the paths per texel they hold.
+    /// Sum of the cache estimates so far, and the paths each texel holds.
     sum: Vec<[f32; 4]>,
-    paths: u32,
+    count: Vec<u32>,
+    /// Refinement steps so far: each step's seed, so that no texel draws the same paths twice.
+    steps: u32,
     /// The filtered cache on the device. After a move it stays the old place's until the new
     /// estimate has `SHOW_AFTER` paths: a lamp moved a few centimetres changes its indirect
     /// light little, so the stale cache looks closer than none (direct light is exact at once).
@@ -72,10 +76,11 @@ pub struct LiveLights {
     albedo: Option<Buffer>,
     tracer: SurfaceCache,
     entries: Vec<Entry>,
-    /// MAX_LIVE caches (filtered means), the lights, one pass's output.
+    /// MAX_LIVE caches (filtered means), the lights, one pass's output, the texels it traces.
     caches: Buffer,
     lives: Buffer,
     step: Buffer,
+    list: Buffer,
 }
 
 impl LiveLights {
@@ -125,6 +130,13 @@ impl LiveLights {
                 (MAX_LIVE * std::mem::size_of::<GpuLive>()) as u64,
             )?,
             step: buf("live cache step", n * 16)?,
+            list: Buffer::new(
+                gpu,
+                "live cache texels",
+                n * 4,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                MemoryLocation::CpuToGpu,
+            )?,
         })
     }
 
@@ -143,7 +155,34 @@ impl LiveLights {
 
     /// Paths per texel in each live light's cache so far, by layer.
     pub fn progress(&self) -> Vec<(u32, u32)> {
-        self.entries.iter().map(|e| (e.layer, e.paths)).collect()
+        self.entries
+            .iter()
+            .map(|e| (e.layer, e.count.iter().copied().min().unwrap_or(0)))
+            .collect()
+    }
+
+    /// Paths per texel so far of live light `layer`'s cache (None: not live).
+    pub fn texel_paths(&self, layer: usize) -> Option<&[u32]> {
+        self.entries
+            .iter()
+            .find(|e| e.layer as usize == layer)
+            .map(|e| &e.count[..])
+    }
+
+    /// The cache texels of the triangles a frame shows (`tri`: the G-buffer's triangle id + 1
+    /// per pixel, 0 for none), each once.
+    pub fn texels_shown(&self, tri: &[u32]) -> Vec<u32> {
+        let mut seen = vec![false; self.layout.texels()];
+        for &t in tri.iter().filter(|&&t| t > 0) {
+            for k in 0..3 {
+                if let Some(&c) = self.layout.corners.get(3 * (t as usize - 1) + k) {
+                    seen[c as usize] = true;
+                }
+            }
+        }
+        (0..seen.len() as u32)
+            .filter(|&i| seen[i as usize])
+            .collect()
     }
 
     /// Makes added light `layer` live at `light` (or moves it): its cache starts over.
@@ -164,7 +203,8 @@ impl LiveLights {
                 let e = &mut self.entries[i];
                 e.light = *light;
                 e.sum = vec![[0.0; 4]; n];
-                e.paths = 0;
+                e.count = vec![0; n];
+                e.steps = 0;
             }
             None if self.entries.len() == MAX_LIVE => {
                 return Err(Error::Other(format!(
@@ -176,7 +216,8 @@ impl LiveLights {
                 layer: layer as u32,
                 light: *light,
                 sum: vec![[0.0; 4]; n],
-                paths: 0,
+                count: vec![0; n],
+                steps: 0,
                 shown: vec![[0.0; 4]; n],
             }),
         }
@@ -208,7 +249,7 @@ impl LiveLights {
                 ]
             })
             .collect();
-        e.paths = paths;
+        e.count = vec![paths; e.sum.len()];
         e.shown = cache;
         self.upload()
     }
@@ -220,54 +261,71 @@ impl LiveLights {
     }
 
     /// One refinement step: `paths_per_step` more paths per texel for every live light whose
-    /// cache is not converged. Returns whether anything changed.
-    pub fn refine(&mut self, mesh: &RayScene) -> Result<bool> {
+    /// cache is not converged, on the `focus` texels (those the frame shows, see
+    /// [`LiveLights::texels_shown`]) while any of them is short of paths, then on the rest.
+    /// Returns whether anything changed.
+    pub fn refine(&mut self, mesh: &RayScene, focus: Option<&[u32]>) -> Result<bool> {
         let Some(albedo) = &self.albedo else {
             return Ok(false);
         };
         let p = self.params;
         let mut changed = false;
         for e in &mut self.entries {
-            if e.paths >= p.paths {
+            let short = |t: &u32| e.count[*t as usize] < p.paths;
+            let mut todo: Vec<u32> = focus.unwrap_or(&[]).iter().copied().filter(short).collect();
+            if todo.is_empty() {
+                todo = (0..e.count.len() as u32).filter(short).collect();
+            }
+            if todo.is_empty() {
                 continue;
             }
+            let fewest = todo.iter().map(|&t| e.count[t as usize]).min().unwrap_or(0);
             let ap = AddedParams {
                 samples: p.samples,
                 cache_samples: p.paths_per_step,
                 bounces: p.bounces,
                 // A new seed per step: the steps are independent estimates.
-                seed: 0x5EED_0000 + e.paths,
+                seed: 0x5EED_0000 + e.steps,
             };
-            let gpu = &self.gpu;
-            let texels = self.glayout.texels;
+            e.steps += 1;
+            self.list.upload(bytemuck::cast_slice(&todo))?;
             let mut res = Ok(());
-            gpu.submit(|cmd| {
-                res = self.tracer.record(
+            self.gpu.submit(|cmd| {
+                res = self.tracer.record_list(
                     cmd,
                     mesh,
                     &self.glayout,
                     albedo,
                     &e.light,
                     ap,
-                    0,
-                    texels,
+                    &self.list,
+                    todo.len() as u32,
                     &self.step,
                 )
             })?;
             res?;
             let step: Vec<[f32; 4]> = self.step.download_vec()?;
             let w = p.paths_per_step as f32;
-            for (s, v) in e.sum.iter_mut().zip(&step) {
+            for &t in &todo {
+                let (s, v) = (&mut e.sum[t as usize], step[t as usize]);
                 for k in 0..3 {
                     s[k] += w * v[k];
                 }
+                e.count[t as usize] += p.paths_per_step;
             }
-            e.paths += p.paths_per_step;
-            if e.paths >= SHOW_AFTER.min(p.paths) || e.shown.iter().all(|v| v[3] == 0.0) {
+            let fewest = fewest + p.paths_per_step;
+            if fewest >= SHOW_AFTER.min(p.paths) || e.shown.iter().all(|v| v[3] == 0.0) {
                 // Fewer paths, more smoothing: the first estimates are noisy, and a blurred
-                // indirect light is closer to the truth than a grainy one.
-                let rounds = (16 / e.paths).max(2);
-                e.shown = self.layout.filter(&mean(&e.sum, e.paths), rounds);
+                // indirect light is closer to the truth than a grainy one. Texels with too few
+                // paths of their own (outside the focus) keep what they showed.
+                let rounds = (16 / fewest).max(2);
+                let fresh = self.layout.filter(&mean(&e.sum, &e.count), rounds);
+                let show = SHOW_AFTER.min(p.paths);
+                for (t, f) in fresh.into_iter().enumerate() {
+                    if e.count[t] >= show || e.shown[t][3] == 0.0 {
+                        e.shown[t] = f;
+                    }
+                }
             }
             changed = true;
         }
@@ -330,13 +388,13 @@ impl LiveLights {
 
 use bytemuck::Zeroable;
 
-/// The mean of a sum of `paths` estimates (w = 1: an estimate is present).
-fn mean(sum: &[[f32; 4]], paths: u32) -> Vec<[f32; 4]> {
+/// Each texel's mean of its `count` estimates (w = 1: an estimate is present, 0: none yet).
+fn mean(sum: &[[f32; 4]], count: &[u32]) -> Vec<[f32; 4]> {
     sum.iter()
-        .map(|s| {
-            (Vec3::from_slice(&s[..3]) / paths.max(1) as f32)
-                .extend(1.0)
-                .into()
+        .zip(count)
+        .map(|(s, &c)| match c {
+            0 => [0.0; 4],
+            c => (Vec3::from_slice(&s[..3]) / c as f32).extend(1.0).into(),
         })
         .collect()
 }

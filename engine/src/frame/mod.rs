@@ -567,7 +567,16 @@ impl Renderer {
 
     /// One refinement step of the live lights' caches; whether anything changed.
     pub fn refine_live(&mut self) -> Result<bool> {
-        self.live.refine(&self.scene.mesh)
+        // The texels the last frame shows converge first: what the user looks at.
+        let focus = match &self.bufs {
+            Some(b) if self.live.count() > 0 => {
+                let tri: Vec<u32> =
+                    bytemuck::pod_collect_to_vec(&b.gbuf.tri.download(vk::ImageLayout::GENERAL)?);
+                Some(self.live.texels_shown(&tri))
+            }
+            _ => None,
+        };
+        self.live.refine(&self.scene.mesh, focus.as_deref())
     }
 
     /// Renders `cam` under `lighting` and waits; read the results with [`Renderer::buffers_ref`].
