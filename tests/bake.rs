@@ -387,7 +387,11 @@ fn surface_cache_matches_cpu_reference() {
         let out = Buffer::from_slice(&gpu, "out", u, &vec![[-1f32; 4]; n]).unwrap();
         let mut r = Ok(());
         gpu.submit(|cmd| {
-            r = pass.record_list(cmd, &rs, &gl, &ab, &l, p, &lb, list.len() as u32, &out)
+            let texels = surface_cache::Texels::List {
+                list: &lb,
+                count: list.len() as u32,
+            };
+            r = pass.record(cmd, &rs, &gl, &ab, &l, p, texels, &out)
         })
         .unwrap();
         r.unwrap();

@@ -451,7 +451,16 @@ fn bake_bench(
         while first < glayout.texels {
             let count = surface_cache::CHUNK.min(glayout.texels - first);
             t_c += timed(&gpu, "cache", |cmd| {
-                sc.record(cmd, &mesh, &glayout, &ab, l, ap, first, count, &cache)
+                sc.record(
+                    cmd,
+                    &mesh,
+                    &glayout,
+                    &ab,
+                    l,
+                    ap,
+                    surface_cache::Texels::Range { first, count },
+                    &cache,
+                )
             })?;
             first += count;
         }

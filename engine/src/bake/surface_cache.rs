@@ -179,6 +179,16 @@ pub struct SurfaceCache {
     pipeline: Pipeline,
 }
 
+/// Which texels a [`SurfaceCache::record`] traces.
+#[derive(Clone, Copy)]
+pub enum Texels<'a> {
+    /// `first..first + count`.
+    Range { first: u32, count: u32 },
+    /// The texel indices `list[..count]` (the live lights' focus); the rest of `out` is left as
+    /// it was.
+    List { list: &'a Buffer, count: u32 },
+}
+
 impl SurfaceCache {
     pub fn new(gpu: &Arc<Gpu>) -> Result<SurfaceCache> {
         Ok(SurfaceCache {
@@ -186,7 +196,7 @@ impl SurfaceCache {
         })
     }
 
-    /// Records texels `first..first + count` of `light`'s cache into `out` (vec4 per texel).
+    /// Records the tracing of `texels` into `out`, each texel's result at its own index.
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
@@ -196,56 +206,13 @@ impl SurfaceCache {
         albedo: &Buffer,
         light: &GpuLight,
         p: AddedParams,
-        first: u32,
-        count: u32,
+        texels: Texels,
         out: &Buffer,
     ) -> Result<()> {
-        self.record_with(cmd, mesh, layout, albedo, light, p, None, first, count, out)
-    }
-
-    /// As [`SurfaceCache::record`] for the texels `list[first..first + count]` (texel indices);
-    /// each result lands at its texel's index in `out`, the rest of `out` is left as it was.
-    #[allow(clippy::too_many_arguments)]
-    pub fn record_list(
-        &self,
-        cmd: vk::CommandBuffer,
-        mesh: &RayScene,
-        layout: &GpuCacheLayout,
-        albedo: &Buffer,
-        light: &GpuLight,
-        p: AddedParams,
-        list: &Buffer,
-        count: u32,
-        out: &Buffer,
-    ) -> Result<()> {
-        self.record_with(
-            cmd,
-            mesh,
-            layout,
-            albedo,
-            light,
-            p,
-            Some(list),
-            0,
-            count,
-            out,
-        )
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn record_with(
-        &self,
-        cmd: vk::CommandBuffer,
-        mesh: &RayScene,
-        layout: &GpuCacheLayout,
-        albedo: &Buffer,
-        light: &GpuLight,
-        p: AddedParams,
-        list: Option<&Buffer>,
-        first: u32,
-        count: u32,
-        out: &Buffer,
-    ) -> Result<()> {
+        let (first, count, list) = match texels {
+            Texels::Range { first, count } => (first, count, None),
+            Texels::List { list, count } => (0, count, Some(list)),
+        };
         let push = Push {
             first,
             count,
@@ -295,7 +262,16 @@ impl SurfaceCache {
             let count = CHUNK.min(layout.texels - first);
             let mut res = Ok(());
             gpu.submit(|cmd| {
-                res = self.record(cmd, mesh, layout, albedo, light, p, first, count, &out)
+                res = self.record(
+                    cmd,
+                    mesh,
+                    layout,
+                    albedo,
+                    light,
+                    p,
+                    Texels::Range { first, count },
+                    &out,
+                )
             })?;
             res?;
             first += count;

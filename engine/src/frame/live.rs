@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use crate::bake::surface_cache::{CacheLayout, GpuCacheLayout, SurfaceCache};
+use crate::bake::surface_cache::{CacheLayout, GpuCacheLayout, SurfaceCache, Texels};
 use crate::bake::{AddedParams, GpuLight};
 use crate::error::{Error, Result};
 use crate::gpu::{vk, Buffer, Gpu, MemoryLocation, RayScene};
@@ -291,15 +291,17 @@ impl LiveLights {
             self.list.upload(bytemuck::cast_slice(&todo))?;
             let mut res = Ok(());
             self.gpu.submit(|cmd| {
-                res = self.tracer.record_list(
+                res = self.tracer.record(
                     cmd,
                     mesh,
                     &self.glayout,
                     albedo,
                     &e.light,
                     ap,
-                    &self.list,
-                    todo.len() as u32,
+                    Texels::List {
+                        list: &self.list,
+                        count: todo.len() as u32,
+                    },
                     &self.step,
                 )
             })?;
