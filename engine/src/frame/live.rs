@@ -320,11 +320,17 @@ impl LiveLights {
                 // Fewer paths, more smoothing: the first estimates are noisy, and a blurred
                 // indirect light is closer to the truth than a grainy one. Texels with too few
                 // paths of their own (outside the focus) keep what they showed.
+                // Texels this step did not trace keep what they showed (a converged texel is
+                // not smoothed again when new texels come into view).
                 let rounds = (16 / fewest).max(2);
                 let fresh = self.layout.filter(&mean(&e.sum, &e.count), rounds);
                 let show = SHOW_AFTER.min(p.paths);
+                let mut traced = vec![false; fresh.len()];
+                for &t in &todo {
+                    traced[t as usize] = true;
+                }
                 for (t, f) in fresh.into_iter().enumerate() {
-                    if e.count[t] >= show || e.shown[t][3] == 0.0 {
+                    if (traced[t] && e.count[t] >= show) || e.shown[t][3] == 0.0 {
                         e.shown[t] = f;
                     }
                 }
