@@ -2,13 +2,14 @@
 # Runs the network's cooperative-matrix tests on lavapipe >= 26 (Mesa's emulated
 # VK_KHR_cooperative_matrix: 8x8x8 fp16 at 8 lanes), which Debian 12 does not package.
 #
-#   bash tools/lavapipe26.sh [TEST_BINARY ...]
+#   bash tools/lavapipe26.sh [TEST_BINARY ...]   # tests (default: the net and gpu tests)
+#   bash tools/lavapipe26.sh --run CMD [ARG ...]  # any host-built command, e.g. relit bench net
 #
 # It builds a Debian 13 (trixie) root with debootstrap once, with Mesa from trixie-backports and
-# the validation layers (~600 MB, kept in $RELIT_LP26_ROOT, default ~/.cache/relit/trixie-root),
-# then runs the given host-built test binaries inside it (chroot in a private mount namespace,
-# the repository mounted at its own path). Without arguments it builds the `net` test and runs
-# its cooperative-matrix tests. Needs root (or sudo) for debootstrap and chroot.
+# the validation layers (~540 MB, kept in $RELIT_LP26_ROOT, default ~/.cache/relit/trixie-root),
+# then runs host-built binaries inside it (chroot in a private mount namespace, the repository
+# mounted at its own path). Tests run with RELIT_REQUIRE_COOP=1: they fail unless the
+# cooperative-matrix kernels run. Needs root (or sudo) for debootstrap and chroot.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo="$(pwd)"
@@ -80,9 +81,12 @@ for l in sys.stdin:
   [ "${#bins[@]}" = 2 ] || { echo "lavapipe26: could not build the net and gpu tests" >&2; exit 1; }
   set -- "${bins[@]}"
   cargo build -q --bin relit
-  in_root "$root" env -C "$repo" target/debug/relit info | grep "network path" \
-    | tee /dev/stderr | grep -q "F16 storage: cooperative matrix" \
-    || { echo "lavapipe26: relit info does not report the cooperative-matrix path" >&2; exit 1; }
+  paths="$(in_root "$root" env -C "$repo" target/debug/relit info | grep "network path")"
+  echo "$paths"
+  case "$paths" in
+    *"F16 storage: cooperative matrix"*) ;;
+    *) echo "lavapipe26: relit info does not report the cooperative-matrix path" >&2; exit 1 ;;
+  esac
 fi
 for bin in "$@"; do
   echo "lavapipe26: $(basename "$bin")"
