@@ -58,7 +58,8 @@ fn radiance(
         lights: &gl,
     };
     let normals = relit_engine::scene::meshproc::vertex_normals(&t.mesh);
-    let e = source_irradiance::reference_vertices(&r, &normals, 16, 5);
+    let all = source_irradiance::PART_ALL;
+    let e = source_irradiance::reference_vertices(&r, &t.mesh.positions, &normals, 16, 5, all);
     let c = radiance_mesh::complete(&t.mesh.triangles, &gathered, &e);
     let b = relit_engine::gpu::Buffer::from_slice(
         gpu,
@@ -206,8 +207,9 @@ fn radiance_mesh_matches_cpu_reference_and_completes_unseen_vertices() {
     let nb = Buffer::from_slice(&gpu, "n", vk::BufferUsageFlags::STORAGE_BUFFER, &nb).unwrap();
     let si = SourceIrradiance::new(&gpu, &lights[..1]).unwrap();
     let nv = t.mesh.positions.len() as u32;
+    let all = source_irradiance::PART_ALL;
     let e_gpu = si
-        .run_vertices(&rs, &gb, &views, &nb, 0, nv, 16, 5)
+        .run_vertices(&rs, &gb, &views, &rs.positions, &nb, (0, nv), 16, 5, all)
         .unwrap();
     let r = source_irradiance::RefScene {
         mesh: &t.mesh,
@@ -215,7 +217,7 @@ fn radiance_mesh_matches_cpu_reference_and_completes_unseen_vertices() {
         views: &t.data,
         lights: &gl,
     };
-    let e_cpu = source_irradiance::reference_vertices(&r, &normals, 16, 5);
+    let e_cpu = source_irradiance::reference_vertices(&r, &t.mesh.positions, &normals, 16, 5, all);
     let (bad, worst) = mismatch(&e_gpu, &e_cpu, 0.01);
     assert!(
         bad <= 0.05,
@@ -242,6 +244,103 @@ fn radiance_mesh_matches_cpu_reference_and_completes_unseen_vertices() {
                 assert!(d[k] >= 0.0 && d[k] <= e[k] / std::f32::consts::PI + 1e-6);
             }
         }
+    }
+    common::assert_no_validation_errors(&gpu);
+}
+
+#[test]
+fn source_cache_matches_cpu_reference_and_the_per_pixel_estimator() {
+    use relit_engine::bake::{source_cache, CacheLayout, GpuCacheLayout, SourceCache};
+    use relit_engine::gpu::{vk, Buffer};
+    let gpu = common::gpu();
+    let (t, rs) = tiny(&gpu);
+    let views = GpuViews::upload(&gpu, &t.data).unwrap();
+    let lights = ceiling_light_facing_the_room();
+    let declared = &lights[..1];
+    let si = SourceIrradiance::new(&gpu, declared).unwrap();
+    let gl = source_irradiance::original_lights(declared);
+    let (rc, rb) = radiance(&gpu, &t, declared);
+    let r = source_irradiance::RefScene {
+        mesh: &t.mesh,
+        radiance: &rc,
+        views: &t.data,
+        lights: &gl,
+    };
+    let layout = CacheLayout::new(&t.mesh);
+    // The texels' indirect part, unfiltered: GPU against CPU, as the per-vertex pass.
+    let g = source_cache::trace(
+        &gpu,
+        &si,
+        &rs,
+        &rb,
+        &views,
+        &layout,
+        (16, 5, 0),
+        &mut |_, _| {},
+    )
+    .unwrap();
+    let c = source_cache::finish(
+        &layout,
+        &source_cache::reference_texels(&r, &layout, 16, 5),
+        0,
+    );
+    let (bad, worst) = mismatch(&g, &c, 0.01);
+    eprintln!("texels: {:.2}% over 1%, worst {worst:.4}", bad * 100.0);
+    assert!(bad <= 0.05, "{:.1}% of texels differ", bad * 100.0);
+    assert!(c.iter().filter(|v| v[3] > 0.0).count() * 2 > c.len());
+    // The per-pixel pass on a filtered cache: direct part + lookup, GPU against CPU.
+    let cache = source_cache::finish(&layout, &c, 2);
+    let u = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let cb = Buffer::from_slice(&gpu, "source cache", u, &cache).unwrap();
+    let glayout = GpuCacheLayout::upload(&gpu, &layout).unwrap();
+    let pass = SourceCache::new(&gpu).unwrap();
+    // The same quantity as the per-pixel estimator: its mean over a view at many rays.
+    let many = 256;
+    let dense = source_cache::finish(
+        &layout,
+        &source_cache::trace(
+            &gpu,
+            &si,
+            &rs,
+            &rb,
+            &views,
+            &layout,
+            (many, 5, 0),
+            &mut |_, _| {},
+        )
+        .unwrap(),
+        2,
+    );
+    let db = Buffer::from_slice(&gpu, "dense cache", u, &dense).unwrap();
+    for view in 0..4u32 {
+        let gv = pass
+            .run(&si, &rs, &rb, &views, (&glayout, &cb), view, 16, 7)
+            .unwrap();
+        let cv = source_cache::reference(&r, &layout, &cache, view as usize, 16, 7);
+        // Same random numbers; 1% of the mean on ≥ 95% of pixels (as E_src's test).
+        let (bad, worst) = mismatch(&gv, &cv, 0.01);
+        eprintln!("view {view}: {:.2}% over 1%, worst {worst:.4}", bad * 100.0);
+        assert!(
+            bad <= 0.05,
+            "view {view}: {:.1}% of pixels differ",
+            bad * 100.0
+        );
+        let cached = pass
+            .run(&si, &rs, &rb, &views, (&glayout, &db), view, many, 7)
+            .unwrap();
+        let full = si.run(&rs, &rb, &views, view, many, 7).unwrap();
+        let mean = |m: &[[f32; 4]]| {
+            let on: Vec<_> = m.iter().filter(|p| p[3] > 0.0).collect();
+            on.iter().map(|p| p[0] + p[1] + p[2]).sum::<f32>() / on.len().max(1) as f32
+        };
+        let ratio = mean(&cached) / mean(&full);
+        eprintln!("view {view}: cached / per-pixel E_src = {ratio:.4}");
+        // Texels start their rays at the vertex (corners see less of the room than the pixels
+        // between them) and exclude no view: a few percent.
+        assert!(
+            (0.95..=1.05).contains(&ratio),
+            "view {view}: ratio {ratio:.3}"
+        );
     }
     common::assert_no_validation_errors(&gpu);
 }
@@ -639,6 +738,8 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
             "preview".into(),
             "--rays".into(),
             "64".into(),
+            "--lights".into(),
+            "all".into(),
         ]
     };
     // Reference: one uninterrupted bake.
@@ -664,9 +765,9 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
     let reference = cache_files(&a);
     assert_eq!(
         reference.len(),
-        2 + 2 * 4 * (2 + 2) + 2,
-        "params.json, albedo + per view: E_src, M_src, 2 × E_add, each as EXR and BC6H, \
-         + 2 surface caches"
+        3 + 2 * 4 * (2 + 2) + 2,
+        "params.json, albedo, source cache + per view: E_src, M_src, 2 × E_add, each as EXR \
+         and BC6H, + 2 surface caches"
     );
     // The BC6H copies load as one texture array and decode on the device close to the EXRs.
     {
@@ -772,6 +873,8 @@ fn view_slices_bake_separately_and_join() {
         "preview",
         "--rays",
         "16",
+        "--lights",
+        "all",
         "--views",
         "0..2",
     ]);
@@ -780,8 +883,8 @@ fn view_slices_bake_separately_and_join() {
     assert!(text.contains("wait for every view"), "{text}");
     assert_eq!(
         cache_files(&d).len(),
-        1 + 2 * 2,
-        "params.json and only the slice's E_src (EXR + BC6H)"
+        2 + 2 * 2,
+        "params.json, the source cache and only the slice's E_src (EXR + BC6H)"
     );
     let out = relit(&[
         "bake",
@@ -790,6 +893,8 @@ fn view_slices_bake_separately_and_join() {
         "preview",
         "--rays",
         "16",
+        "--lights",
+        "all",
         "--views",
         "2..4",
     ]);
@@ -807,6 +912,8 @@ fn view_slices_bake_separately_and_join() {
         "preview",
         "--rays",
         "16",
+        "--lights",
+        "all",
         "--views",
         "3..9",
     ]);
@@ -1020,6 +1127,8 @@ fn moving_a_light_rebakes_its_entry_alone_and_matches_a_fresh_bake() {
             "4",
             "--cache-samples",
             "8",
+            "--lights",
+            "all",
         ])
     };
     assert!(args(&s).status.success());
@@ -1084,4 +1193,68 @@ fn moving_a_light_rebakes_its_entry_alone_and_matches_a_fresh_bake() {
         let ours = after.iter().find(|a| &a.0 == name).expect(name);
         assert!(&ours.1 == bytes, "{name} differs from a fresh bake");
     }
+}
+
+#[test]
+fn bake_covers_the_lights_in_use_and_others_are_baked_when_first_lit() {
+    let d = bake_scene("bake-used");
+    let s = d.to_str().unwrap();
+    let entries = || {
+        let mut v: Vec<String> = cache_files(&d)
+            .into_iter()
+            .filter_map(|(n, _)| n.split('/').next().map(str::to_string))
+            .filter(|n| n.starts_with("light-"))
+            .collect();
+        v.dedup();
+        v
+    };
+    let bake = |extra: &[&str]| {
+        let mut a = vec!["bake", s, "--quality", "preview", "--rays", "16"];
+        a.extend(extra);
+        relit(&a)
+    };
+    // An unknown name is refused, naming the scene file and the lights there are.
+    let out = bake(&["--lights", "nope"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("nope") && err.contains("scene.json") && err.contains("extra1"),
+        "{err}"
+    );
+    // By default: the lights the presets light (scenegen's preset lights extra0 alone).
+    let out = bake(&[]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(entries().len(), 1, "{:?}", entries());
+    // A preset that lights extra1: rendering it bakes extra1's entry first, then renders.
+    let path = d.join("scene.json");
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    doc["presets"].as_array_mut().unwrap().push(
+        serde_json::json!({ "name": "second", "dim": 0.0, "intensities": { "extra1": 1.0 } }),
+    );
+    std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+    let png = d.join("v.png");
+    let render = |preset: Option<&str>| {
+        let mut a = vec!["render", s, "--camera", "0", "--out", png.to_str().unwrap()];
+        if let Some(p) = preset {
+            a.extend(["--lighting", p]);
+        }
+        relit(&a)
+    };
+    let out = render(None);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(entries().len(), 1, "the original lighting bakes no light");
+    let out = render(Some("second"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("baking light(s) extra1"), "{err}");
+    assert_eq!(entries().len(), 2, "{:?}", entries());
 }

@@ -14,6 +14,8 @@
 // round-robin over the lights); a cosine ray that meets a declared light counts as a ray of zero
 // indirect radiance, so no light is counted twice:
 //   E = Σ_l E_dir,l + π · mean(L over rays with a radiance) · (rays not on a light) / SAMPLES.
+// `parts` chooses the terms: the source cache (source_cache.rs) traces the indirect one at
+// texels and the direct one at pixels.
 //
 // The includer defines VIEWS_BINDING (1) and includes this after its #extension lines.
 #ifndef RELIT_SOURCE_IRRADIANCE_GLSL
@@ -32,7 +34,11 @@ layout(set = 0, binding = 8) readonly buffer Radiance { vec4 radiance[]; };   //
 // vertex of this dispatch; `count`: vertices in the dispatch (the per-pixel pass ignores it).
 layout(push_constant) uniform Push {
     uint view; uint width; uint height; uint nviews; uint samples; uint seed; uint nlights; uint count;
+    uint parts;
 } pc;
+
+const uint PART_DIRECT = 1u;     // the declared lights' next-event estimation
+const uint PART_INDIRECT = 2u;   // the cosine rays gathering the views' radiance
 
 // Whether the ray (o, d) whose proxy hit is y at distance t (t < 0: no hit) meets a light first.
 bool meets_light(vec3 o, vec3 d, float t, vec3 y) {
@@ -62,11 +68,12 @@ vec4 source_irradiance(vec3 x, vec3 n, uint exclude, uint key) {
     vec3 sum = vec3(0.0), direct = vec3(0.0);
     uint valid = 0u, on_light = 0u;
     for (uint s = 0u; s < pc.samples; ++s) {
-        if (pc.nlights > 0u) {
+        if (pc.nlights > 0u && (pc.parts & PART_DIRECT) != 0u) {
             uint l = s % pc.nlights;
             float per_light = float((pc.samples - l + pc.nlights - 1u) / pc.nlights);
             direct += light_direct(lights[l], x, n, rand2(uvec3(key, s, ~pc.seed)), LIGHT_SKIN) / per_light;
         }
+        if ((pc.parts & PART_INDIRECT) == 0u) continue;
         vec3 d = cosine_dir(n, rand2(uvec3(key, s, pc.seed)));
         vec3 o = x + n * 1e-3;
         rayQueryEXT rq;

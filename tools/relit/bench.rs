@@ -568,7 +568,7 @@ fn light_bench(
     let gpu = crate::open_gpu(opts)?;
     let mut args = fa.clone();
     args.mode = Some(crate::render::ModeArg::Ratio);
-    let (mut r, _) = crate::render::open_renderer(&gpu, &scene, &args, None)?;
+    let (mut r, _) = crate::render::open_renderer(&gpu, &scene, &args, None, None)?;
     let added: Vec<&relit_engine::scene::Light> =
         scene.lights.iter().filter(|l| !l.original).collect();
     let Some(first) = added.first() else {
@@ -810,7 +810,7 @@ fn frame_bench(
     if random_net {
         args.mode = Some(crate::render::ModeArg::Ulr);
     }
-    let (r, mut mode) = crate::render::open_renderer(&gpu, &scene, &args, Some((w, h)))?;
+    let (r, mut mode) = crate::render::open_renderer(&gpu, &scene, &args, Some((w, h)), None)?;
     let mut r = if random_net {
         let storage = args.storage.resolve(&gpu.caps, Some((w, h)));
         let net = Network::from_params(

@@ -178,7 +178,7 @@ fn scene_job(a: &DatasetArgs, opts: &GpuOptions, job: &Job) -> Result<()> {
     }
     let mut p = crate::quality_params(a.quality);
     p.compress = false;
-    crate::bake(&dir, &p, false, opts)?;
+    crate::bake(&dir, &p, "all", false, opts)?;
     let frame = crate::render::FrameArgs {
         weights: None,
         mode: None,

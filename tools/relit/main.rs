@@ -49,9 +49,14 @@ enum Cmd {
         views: Option<std::ops::Range<usize>>,
         #[arg(long, value_enum, default_value = "final")]
         quality: Quality,
-        /// Rays per pixel for the source irradiance (overrides the quality preset).
+        /// Rays per pixel for the source irradiance (overrides the quality preset); with the
+        /// source cache, shadow rays towards the declared original lights.
         #[arg(long)]
         rays: Option<u32>,
+        /// Rays per texel for the source irradiance's indirect part when the scene declares its
+        /// original lights (overrides the preset); 0: every ray per pixel.
+        #[arg(long)]
+        texel_rays: Option<u32>,
         /// Shadow rays per pixel for the added irradiance's direct part (overrides the preset).
         #[arg(long)]
         added_samples: Option<u32>,
@@ -59,6 +64,11 @@ enum Cmd {
         /// the preset).
         #[arg(long)]
         cache_samples: Option<u32>,
+        /// Which added lights to bake: `presets` (the lights the scene's lighting presets light,
+        /// and with --eval those of its ground-truth conditions), `all`, or names A,B. Others
+        /// are baked when a command first lights them.
+        #[arg(long, default_value = "presets")]
+        lights: String,
         /// After baking, compare with the scene's ground truth (synthetic scenes).
         #[arg(long)]
         eval: bool,
@@ -509,13 +519,47 @@ fn tools_dir() -> PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tools")
 }
 
+/// The added lights `--lights` names (None: all), checked against the scene.
+fn bake_lights_arg(scene: &Scene, arg: &str, eval: bool) -> Result<Option<Vec<String>>> {
+    let added = relit_engine::frame::added_lights(scene);
+    Ok(match arg {
+        "all" => None,
+        "presets" => {
+            let mut v = scene.preset_lights();
+            if let (true, Some(syn)) = (eval, &scene.synthetic) {
+                v.extend(syn.conditions.iter().flat_map(|c| c.lights.iter().cloned()));
+            }
+            v.retain(|n| added.contains(n));
+            v.sort();
+            v.dedup();
+            Some(v)
+        }
+        names => {
+            let v: Vec<String> = names.split(',').map(|n| n.trim().to_string()).collect();
+            if let Some(n) = v.iter().find(|n| !added.contains(n)) {
+                anyhow::bail!(
+                    "--lights: \"{n}\" is not an added light of {} (added lights: {}; or `presets`, `all`)",
+                    scene.root.join("scene.json").display(),
+                    added.join(", ")
+                );
+            }
+            Some(v)
+        }
+    })
+}
+
 fn bake(
     dir: &std::path::Path,
     p: &relit_engine::bake::BakeParams,
+    lights: &str,
     eval: bool,
     opts: &GpuOptions,
 ) -> Result<()> {
     let scene = Scene::load(dir)?;
+    let p = &relit_engine::bake::BakeParams {
+        lights: bake_lights_arg(&scene, lights, eval)?,
+        ..p.clone()
+    };
     print_coverage_warnings(&scene::light_coverage(&scene));
     let gpu = open_gpu(opts)?;
     let t0 = std::time::Instant::now();
@@ -708,8 +752,10 @@ fn main() {
             views,
             quality,
             rays,
+            texel_rays,
             added_samples,
             cache_samples,
+            lights,
             eval,
             mesh_process,
             uncompressed,
@@ -721,13 +767,16 @@ fn main() {
             if let Some(r) = rays {
                 p.irradiance_samples = *r;
             }
+            if let Some(t) = texel_rays {
+                p.source_cache_samples = *t;
+            }
             if let Some(a) = added_samples {
                 p.added_samples = *a;
             }
             if let Some(c) = cache_samples {
                 p.cache_samples = *c;
             }
-            bake(scene, &p, *eval, &opts)
+            bake(scene, &p, lights, *eval, &opts)
         }
     };
     if let Err(e) = res {

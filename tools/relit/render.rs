@@ -66,8 +66,11 @@ pub fn find_bake(scene: &Scene, quality: Option<crate::Quality>) -> Result<BakeP
         .into_iter()
         .find(|p| {
             preset.as_ref().is_none_or(|q| {
-                (q.irradiance_samples, q.added_samples, q.cache_samples, q.bounces)
-                    == (p.irradiance_samples, p.added_samples, p.cache_samples, p.bounces)
+                let counts = |b: &BakeParams| {
+                    let s = (b.irradiance_samples, b.source_cache_samples, b.added_samples);
+                    (s, b.cache_samples, b.bounces)
+                };
+                counts(q) == counts(p)
             })
         })
         .with_context(|| {
@@ -129,14 +132,17 @@ pub fn rescale(c: &Camera, w: u32, h: u32) -> Camera {
 }
 
 /// Opens the scene's bake on the device with the network (when weights are given).
-/// `size`: the frame size when known (it decides `--storage auto`).
+/// `size`: the frame size when known (it decides `--storage auto`); `used`: the added lights
+/// the command will light (None: every one), baked now if the bake has no entry for them.
 pub fn open_renderer(
     gpu: &Arc<Gpu>,
     scene: &Scene,
     a: &FrameArgs,
     size: Option<(u32, u32)>,
+    used: Option<Vec<String>>,
 ) -> Result<(Renderer, Mode)> {
-    let params = find_bake(scene, a.quality)?;
+    let mut params = find_bake(scene, a.quality)?;
+    params.lights = used;
     let storage: Storage = a.storage.resolve(&gpu.caps, size);
     let cpu_device = gpu.caps.device_type == relit_engine::gpu::vk::PhysicalDeviceType::CPU;
     let format = match a.maps {
@@ -148,7 +154,8 @@ pub fn open_renderer(
         MapsArg::Auto if cpu_device || !gpu.caps.bc6h_sampled_linear => MapFormat::Rgba16f,
         MapsArg::Auto => MapFormat::Bc6h,
     };
-    // Added lights with no entry yet (added or moved since the bake) are baked now.
+    // Used added lights with no entry yet (added or moved since the bake, or never used) are
+    // baked now.
     let missing = relit_engine::bake::run::missing_lights(scene, &params)?;
     if !missing.is_empty() {
         let names: Vec<&str> = missing.iter().map(|l| l.name.as_str()).collect();
@@ -177,6 +184,15 @@ pub fn open_renderer(
         }
     };
     Ok((Renderer::new(gpu, fs, net, storage)?, mode))
+}
+
+/// The added lights `l` lights, by name.
+fn lit(scene: &Scene, l: &Lighting) -> Vec<String> {
+    let names = relit_engine::frame::added_lights(scene);
+    (names.into_iter().zip(&l.intensities))
+        .filter(|(_, &i)| i != 0.0)
+        .map(|(n, _)| n)
+        .collect()
 }
 
 fn lighting(scene: &Scene, preset: Option<&str>) -> Result<Lighting> {
@@ -218,7 +234,8 @@ pub fn render(
     let cam = resolve_camera(&scene, camera, res)?;
     let light = lighting(&scene, preset)?;
     let gpu = crate::open_gpu(opts)?;
-    let (mut r, mode) = open_renderer(&gpu, &scene, a, Some((cam.width, cam.height)))?;
+    let used = Some(lit(&scene, &light));
+    let (mut r, mode) = open_renderer(&gpu, &scene, a, Some((cam.width, cam.height)), used)?;
     r.render(&cam, &light, mode, a.exposure, None)?;
     write_frame(&r, out)?;
     println!("{}: {}x{} ({mode:?})", out.display(), cam.width, cam.height);
@@ -251,7 +268,7 @@ pub fn fly(
     }
     let n = frames as u64;
     let gpu = crate::open_gpu(opts)?;
-    let (mut r, mode) = open_renderer(&gpu, &scene, a, Some(res))?;
+    let (mut r, mode) = open_renderer(&gpu, &scene, a, Some(res), Some(cp.lit_lights()))?;
     let video = out.extension().is_some_and(|e| e == "mp4");
     let (w, h) = res;
     let tmp = scene::temp_path(out);
@@ -445,7 +462,9 @@ pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> 
     fa.weights = None;
     fa.mode = Some(ModeArg::Ulr);
     fa.storage = crate::StorageArg::F32;
-    let (mut r, _) = open_renderer(&gpu, &scene, &fa, Some((cam.width, cam.height)))?;
+    // --parts stores every light.
+    let used = (!parts).then(|| lit(&scene, &light));
+    let (mut r, _) = open_renderer(&gpu, &scene, &fa, Some((cam.width, cam.height)), used)?;
     // An input view's own image must not be among its inputs (the network would learn to copy
     // it): leave it out of every pass unless --keep-view.
     let view_index = match camera.parse::<usize>() {

@@ -715,7 +715,7 @@ pub fn view(opts: &GpuOptions, a: ViewArgs) -> Result<()> {
     let scene = Scene::load(&a.scene)?;
     let gpu = crate::open_gpu(&o)?;
     // Frames render at --res whatever the window size (then scaled to it).
-    let (renderer, mode) = crate::render::open_renderer(&gpu, &scene, &a.frame, Some(a.res))?;
+    let (renderer, mode) = crate::render::open_renderer(&gpu, &scene, &a.frame, Some(a.res), None)?;
     let start = match &a.camera {
         Some(c) => crate::render::resolve_camera(&scene, c, Some(a.res))?,
         None => crate::render::rescale(&scene.views[0].camera, a.res.0, a.res.1),

@@ -161,7 +161,17 @@ pub fn build(
     let mut first = 0;
     while first < nverts {
         let count = CHUNK.min(nverts - first);
-        e.extend(si.run_vertices(mesh, &gb, views, &nb, first, count, samples, seed)?);
+        e.extend(si.run_vertices(
+            mesh,
+            &gb,
+            views,
+            &mesh.positions,
+            &nb,
+            (first, count),
+            samples,
+            seed,
+            super::source_irradiance::PART_ALL,
+        )?);
         first += count;
     }
     storage("radiance mesh", &complete(&geom.triangles, &gathered, &e))

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use super::{
     AddedIrradiance, AddedParams, AlbedoMesh, CacheLayout, Denoise, DenoiseParams, GpuCacheLayout,
-    GpuLight, GpuViews, Mirror, SourceIrradiance, SurfaceCache, ViewData,
+    GpuLight, GpuViews, Mirror, SourceCache, SourceIrradiance, SurfaceCache, ViewData,
 };
 use crate::error::{Error, Result};
 use crate::gpu::{vk, Buffer, Gpu, MemoryLocation, RayScene};
@@ -22,12 +22,16 @@ use crate::scene::image::{load_rgb, write_exr, RgbImage};
 use crate::scene::{write_atomic, Light, Scene};
 
 /// Bump when a pass changes what it computes: old caches are then not reused.
-pub const BAKE_VERSION: u32 = 6;
+pub const BAKE_VERSION: u32 = 7;
 
 #[derive(Clone, Debug)]
 pub struct BakeParams {
-    /// Rays per pixel for E_src (§4.1.1: 128).
+    /// Rays per pixel for E_src (§4.1.1: 128). With the source cache, the shadow rays per pixel
+    /// towards the declared original lights.
     pub irradiance_samples: u32,
+    /// Rays per texel for E_src's indirect part in the source cache (`source_cache.rs`), used
+    /// when the scene declares its original lights; 0: every ray per pixel, as §4.1.1.
+    pub source_cache_samples: u32,
     /// Shadow rays per pixel for E_add's direct part.
     pub added_samples: u32,
     /// Paths per texel of the surface cache (E_add's indirect part), and the most bounces.
@@ -45,6 +49,9 @@ pub struct BakeParams {
     pub seed: u32,
     /// Slice of views to bake (all by default).
     pub views: Option<Range<usize>>,
+    /// The added lights to bake, by name (None: every one). Not in the cache key: each light
+    /// has an entry of its own, and the frame bakes a missing one when it is first used.
+    pub lights: Option<Vec<String>>,
     /// The E_src denoiser (radius 0: off, and the surface cache's filter off too).
     pub denoise: DenoiseParams,
     /// Also store every map as BC6H (`<map>.bc6h`); off = the uncompressed switch (EXR only).
@@ -70,6 +77,11 @@ pub fn bake_mesh(scene: &Scene, p: &BakeParams) -> crate::scene::Mesh {
 pub const TEXEL_SIZE: f32 = 0.1;
 
 impl BakeParams {
+    /// Whether `l` is an added light this bake covers.
+    pub fn wants(&self, l: &Light) -> bool {
+        !l.original && self.lights.as_ref().is_none_or(|n| n.contains(&l.name))
+    }
+
     /// E_add's parameters.
     pub fn added(&self) -> AddedParams {
         AddedParams {
@@ -83,12 +95,14 @@ impl BakeParams {
     pub fn final_quality() -> BakeParams {
         BakeParams {
             irradiance_samples: 128,
+            source_cache_samples: 512,
             added_samples: 32,
             cache_samples: 128,
             bounces: 6,
             texel_size: TEXEL_SIZE,
             seed: 1,
             views: None,
+            lights: None,
             denoise: DenoiseParams::default(),
             mesh_process: false,
             compress: true,
@@ -97,12 +111,14 @@ impl BakeParams {
     pub fn preview() -> BakeParams {
         BakeParams {
             irradiance_samples: 32,
+            source_cache_samples: 128,
             added_samples: 8,
             cache_samples: 32,
             bounces: 6,
             texel_size: TEXEL_SIZE,
             seed: 1,
             views: None,
+            lights: None,
             denoise: DenoiseParams::default(),
             mesh_process: false,
             compress: true,
@@ -156,7 +172,7 @@ pub fn cache_dir(scene: &Scene, p: &BakeParams) -> Result<PathBuf> {
     let mut h = Fnv::new();
     h.bytes(&BAKE_VERSION.to_le_bytes());
     // E_add's sample counts and bounces key the light entries (`light_dir`), not the bake.
-    for v in [p.irradiance_samples, p.seed] {
+    for v in [p.irradiance_samples, p.source_cache_samples, p.seed] {
         h.bytes(&v.to_le_bytes());
     }
     h.bytes(&p.texel_size.to_le_bytes());
@@ -196,7 +212,8 @@ fn from_image(img: &RgbImage) -> Vec<[f32; 4]> {
 fn write_params(cache: &Path, p: &BakeParams) -> Result<()> {
     let d = p.denoise;
     let doc = serde_json::json!({
-        "irradiance_samples": p.irradiance_samples, "added_samples": p.added_samples,
+        "irradiance_samples": p.irradiance_samples, "source_cache_samples": p.source_cache_samples,
+        "added_samples": p.added_samples,
         "cache_samples": p.cache_samples, "texel_size": p.texel_size, "bounces": p.bounces, "seed": p.seed, "mesh_process": p.mesh_process,
         "denoise": { "radius": d.radius, "sigma_px": d.sigma_px, "sigma_depth": d.sigma_depth,
                      "normal_power": d.normal_power },
@@ -211,12 +228,14 @@ fn read_params(path: &Path) -> Option<BakeParams> {
     let f = |k: &str| d.get(k)?.as_f64().map(|x| x as f32);
     Some(BakeParams {
         irradiance_samples: u("irradiance_samples")?,
+        source_cache_samples: u("source_cache_samples")?,
         added_samples: u("added_samples")?,
         cache_samples: u("cache_samples")?,
         bounces: u("bounces")?,
         texel_size: v.get("texel_size")?.as_f64()? as f32,
         seed: u("seed")?,
         views: None,
+        lights: None,
         denoise: DenoiseParams {
             radius: d.get("radius")?.as_i64()? as i32,
             sigma_px: f("sigma_px")?,
@@ -239,13 +258,13 @@ pub fn is_complete(scene: &Scene, p: &BakeParams) -> Result<bool> {
             .all(|v| esrc_file(&dir, &v.name).exists() && msrc_file(&dir, &v.name).exists()))
 }
 
-/// The scene's added lights whose entry in the bake for `p` lacks a view's map.
+/// The added lights of `p` whose entry in the bake lacks a view's map.
 pub fn missing_lights<'a>(scene: &'a Scene, p: &BakeParams) -> Result<Vec<&'a Light>> {
     let dir = cache_dir(scene, p)?;
     Ok(scene
         .lights
         .iter()
-        .filter(|l| !l.original)
+        .filter(|l| p.wants(l))
         .filter(|l| {
             scene
                 .views
@@ -255,8 +274,8 @@ pub fn missing_lights<'a>(scene: &'a Scene, p: &BakeParams) -> Result<Vec<&'a Li
         .collect())
 }
 
-/// Bakes the entries of added lights that have none yet (a light added or moved since the
-/// bake), on a complete bake; the frame calls this before it loads the maps.
+/// Bakes the entries of the added lights of `p` that have none yet (a light added or moved since
+/// the bake, or first used), on a complete bake; the frame calls this before it loads the maps.
 pub fn bake_lights(
     gpu: &Arc<Gpu>,
     scene: &Scene,
@@ -277,6 +296,7 @@ pub fn bake_lights(
     let ab = Buffer::from_slice(gpu, "albedo", vk::BufferUsageFlags::STORAGE_BUFFER, &albedo)?;
     let p = BakeParams {
         views: None,
+        lights: None,
         ..p.clone()
     };
     added_stage(
@@ -473,6 +493,22 @@ pub fn bake(
         progress.update("radiance mesh", 1, 1, rays);
         Some(r)
     };
+    let source_cache = match radiance.as_ref() {
+        Some(r) if uses_source_cache(scene, p) => Some(source_cache(
+            gpu,
+            &si,
+            &mesh,
+            r,
+            &views,
+            &geom,
+            &cache,
+            p,
+            progress,
+            &mut report,
+        )?),
+        _ => None,
+    };
+    let sc = SourceCache::new(gpu)?;
     let (t0, mut rays) = (Instant::now(), 0u64);
     for (k, &i) in todo.iter().enumerate() {
         let Some(radiance) = radiance.as_ref() else {
@@ -480,15 +516,29 @@ pub fn bake(
         };
         let mut res = Ok(());
         let (v, n) = (i as u32, p.irradiance_samples);
+        let estimate = |cmd, out: &Buffer| match &source_cache {
+            Some((layout, values)) => sc.record(
+                cmd,
+                &si,
+                &mesh,
+                radiance,
+                &views,
+                (layout, values),
+                v,
+                n,
+                p.seed,
+                out,
+            ),
+            None => si.record(cmd, &mesh, radiance, &views, v, n, p.seed, out),
+        };
         gpu.submit(|cmd| {
             res = if p.denoise.radius > 0 {
-                si.record(cmd, &mesh, radiance, &views, v, n, p.seed, &noisy)
-                    .and_then(|_| {
-                        crate::gpu::full_barrier(gpu, cmd);
-                        dn.record(cmd, &views, v, p.denoise, &noisy, None, &out)
-                    })
+                estimate(cmd, &noisy).and_then(|_| {
+                    crate::gpu::full_barrier(gpu, cmd);
+                    dn.record(cmd, &views, v, p.denoise, &noisy, None, &out)
+                })
             } else {
-                si.record(cmd, &mesh, radiance, &views, v, n, p.seed, &out)
+                estimate(cmd, &out)
             }
         })?;
         res?;
@@ -497,7 +547,14 @@ pub fn bake(
             &esrc_file(&cache, &scene.views[i].name),
             &to_image(w, h, &e),
         )?;
-        rays += npix * p.irradiance_samples as u64 * per_sample;
+        // With the source cache, a pixel traces only its shadow rays.
+        rays += npix
+            * p.irradiance_samples as u64
+            * if source_cache.is_some() {
+                1
+            } else {
+                per_sample
+            };
         progress.update("source irradiance", k + 1, todo.len(), rays);
     }
     report.stages.push((
@@ -579,7 +636,7 @@ pub fn bake(
     ));
 
     // Stage 4: per added light, its surface cache, then its E_add map per view.
-    let lights: Vec<&Light> = scene.lights.iter().filter(|l| !l.original).collect();
+    let lights: Vec<&Light> = scene.lights.iter().filter(|l| p.wants(l)).collect();
     added_stage(
         gpu,
         &mesh,
@@ -598,6 +655,79 @@ pub fn bake(
         compress_missing(&cache)?;
     }
     Ok(report)
+}
+
+/// Whether E_src's indirect part comes from the source cache: when asked for and the scene
+/// declares original lights (without them their light reaches E_src through the views' pixels,
+/// whose shadows texels would blur).
+pub fn uses_source_cache(scene: &Scene, p: &BakeParams) -> bool {
+    p.source_cache_samples > 0 && scene.lights.iter().any(|l| l.original)
+}
+
+pub fn source_cache_file(cache: &Path) -> PathBuf {
+    cache.join("source_cache.bin")
+}
+
+/// The source cache of this bake on the device: read from the cache directory, or traced,
+/// filtered and written there (a resumed bake, or another slice's job, reuses it).
+#[allow(clippy::too_many_arguments)]
+fn source_cache(
+    gpu: &Arc<Gpu>,
+    si: &SourceIrradiance,
+    mesh: &RayScene,
+    radiance: &Buffer,
+    views: &GpuViews,
+    geom: &crate::scene::Mesh,
+    cache: &Path,
+    p: &BakeParams,
+    progress: &mut dyn Progress,
+    report: &mut BakeReport,
+) -> Result<(GpuCacheLayout, Buffer)> {
+    let layout = CacheLayout::new(geom);
+    let file = source_cache_file(cache);
+    let values = if file.exists() {
+        super::surface_cache::read(&file, layout.texels())?
+    } else {
+        let t0 = Instant::now();
+        let rounds = if p.denoise.radius > 0 {
+            CACHE_FILTER_ROUNDS
+        } else {
+            0
+        };
+        let n = p.source_cache_samples;
+        let v = super::source_cache::trace(
+            gpu,
+            si,
+            mesh,
+            radiance,
+            views,
+            &layout,
+            (n, p.seed, rounds),
+            &mut |d, total| progress.update("source cache", d as usize, total as usize, 0),
+        )?;
+        super::surface_cache::write(&file, &v)?;
+        let rays = layout.texels() as u64 * n as u64;
+        report.stages.push((
+            "source cache".into(),
+            t0.elapsed().as_secs_f64(),
+            rays,
+            layout.texels(),
+        ));
+        v
+    };
+    let one = [[0.0f32; 4]];
+    let values = if values.is_empty() {
+        &one[..]
+    } else {
+        &values[..]
+    };
+    let vb = Buffer::from_slice(
+        gpu,
+        "source cache",
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+        values,
+    )?;
+    Ok((GpuCacheLayout::upload(gpu, &layout)?, vb))
 }
 
 /// Rounds of the surface cache's filter along the mesh (off with the denoiser).

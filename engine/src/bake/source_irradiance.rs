@@ -31,17 +31,25 @@ pub(super) fn near_light(d: &ViewData, lights: &[GpuLight], q: usize) -> bool {
         .any(|l| l.near(p, LIGHT_SKIN + margin, margin))
 }
 
+/// Which terms of the estimator a pass computes (`parts` in the shader): the declared lights'
+/// next-event estimation, the cosine rays gathering the views' radiance, or both.
+pub const PART_DIRECT: u32 = 1;
+pub const PART_INDIRECT: u32 = 2;
+pub const PART_ALL: u32 = PART_DIRECT | PART_INDIRECT;
+
+/// The push constants of every pass that includes `source_irradiance.glsl`.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct Push {
-    view: u32,
-    width: u32,
-    height: u32,
-    nviews: u32,
-    samples: u32,
-    seed: u32,
-    nlights: u32,
-    count: u32,
+pub(super) struct Push {
+    pub view: u32,
+    pub width: u32,
+    pub height: u32,
+    pub nviews: u32,
+    pub samples: u32,
+    pub seed: u32,
+    pub nlights: u32,
+    pub count: u32,
+    pub parts: u32,
 }
 
 /// Random streams of vertices start past every pixel's (`VERTEX_KEY` in the shader).
@@ -120,6 +128,7 @@ impl SourceIrradiance {
             seed,
             nlights: self.nlights,
             count: 0,
+            parts: PART_ALL,
         };
         let mut binds = vec![
             (0, Bind::Accel(mesh.tlas.raw)),
@@ -167,19 +176,26 @@ impl SourceIrradiance {
         })
     }
 
-    /// E_src at vertices `first..first + count` of `mesh` (normals: one unit vec4 per vertex,
-    /// zero to skip), no view excluded; one vec4 per vertex as the per-pixel pass.
+    /// The declared original lights as the shader reads them, and their count.
+    pub(super) fn lights(&self) -> (&Buffer, u32) {
+        (&self.lights, self.nlights)
+    }
+
+    /// The `parts` of E_src at points `first..first + count` of `positions` (vec3 each: the
+    /// mesh's vertices, or the source cache's texels; normals: one unit vec4 per point, zero to
+    /// skip), no view excluded; one vec4 per point as the per-pixel pass.
     #[allow(clippy::too_many_arguments)]
     pub fn run_vertices(
         &self,
         mesh: &RayScene,
         radiance: &Buffer,
         views: &GpuViews,
+        positions: &Buffer,
         normals: &Buffer,
-        first: u32,
-        count: u32,
+        (first, count): (u32, u32),
         samples: u32,
         seed: u32,
+        parts: u32,
     ) -> Result<Vec<[f32; 4]>> {
         let push = Push {
             view: first,
@@ -190,6 +206,7 @@ impl SourceIrradiance {
             seed,
             nlights: self.nlights,
             count,
+            parts,
         };
         super::views::run_vertices(&self.pipeline.gpu, count, |cmd, out| {
             let mut binds = vec![
@@ -198,7 +215,7 @@ impl SourceIrradiance {
                 (6, Bind::Buffer(&self.lights)),
                 (7, Bind::Buffer(&mesh.indices)),
                 (8, Bind::Buffer(radiance)),
-                (9, Bind::Buffer(&mesh.positions)),
+                (9, Bind::Buffer(positions)),
                 (10, Bind::Buffer(normals)),
             ];
             binds.extend(views.binds(1));
@@ -249,9 +266,10 @@ pub struct RefScene<'a> {
     pub lights: &'a [GpuLight],
 }
 
-/// The estimator at x (normal n), views other than `exclude`, random stream `key`
+/// The estimator's `parts` at x (normal n), views other than `exclude`, random stream `key`
 /// (`source_irradiance` in the shader).
-fn estimate(
+#[allow(clippy::too_many_arguments)]
+pub(super) fn estimate(
     r: &RefScene,
     x: Vec3,
     n: Vec3,
@@ -259,16 +277,20 @@ fn estimate(
     key: u32,
     samples: u32,
     seed: u32,
+    parts: u32,
 ) -> [f32; 4] {
     let (d, lights) = (r.views, r.lights);
     let nl = lights.len() as u32;
     let (mut sum, mut direct, mut valid, mut on_light) = (Vec3::ZERO, Vec3::ZERO, 0u32, 0u32);
     for s in 0..samples {
-        if nl > 0 {
+        if nl > 0 && parts & PART_DIRECT != 0 {
             let l = s % nl;
             let per_light = (samples - l).div_ceil(nl) as f32;
             let u = rand2([key, s, !seed]);
             direct += lights[l as usize].direct(r.mesh, x, n, u, LIGHT_SKIN) / per_light;
+        }
+        if parts & PART_INDIRECT == 0 {
+            continue;
         }
         let dir = cosine_dir(n, rand2([key, s, seed]));
         let o = x + n * 1e-3;
@@ -315,20 +337,21 @@ pub fn reference(r: &RefScene, view: usize, samples: u32, seed: u32) -> Vec<[f32
             }
             let x = Vec3::from_slice(&d.pos[gi][..3]);
             let n = facing_normal(d, gi, view);
-            estimate(r, x, n, view, gi as u32, samples, seed)
+            estimate(r, x, n, view, gi as u32, samples, seed, PART_ALL)
         })
         .collect()
 }
 
-/// CPU reference of the per-vertex pass.
+/// CPU reference of the per-vertex pass at `positions` (the mesh's vertices or the texels).
 pub fn reference_vertices(
     r: &RefScene,
+    positions: &[[f32; 3]],
     normals: &[Vec3],
     samples: u32,
     seed: u32,
+    parts: u32,
 ) -> Vec<[f32; 4]> {
-    r.mesh
-        .positions
+    positions
         .iter()
         .zip(normals)
         .enumerate()
@@ -337,7 +360,7 @@ pub fn reference_vertices(
                 return [0.0; 4];
             }
             let key = VERTEX_KEY.wrapping_add(v as u32);
-            estimate(r, Vec3::from(*p), *n, usize::MAX, key, samples, seed)
+            estimate(r, Vec3::from(*p), *n, usize::MAX, key, samples, seed, parts)
         })
         .collect()
 }

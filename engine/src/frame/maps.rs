@@ -31,6 +31,8 @@ pub struct HostMaps {
     pub esrc: Vec<Vec<[f32; 4]>>,
     /// Layer `light * views + view`.
     pub eadd: Vec<Vec<[f32; 4]>>,
+    /// Added lights the bake has no entry for (not used yet): their layers are zero.
+    pub unbaked: Vec<String>,
 }
 
 pub struct ViewMaps {

@@ -221,6 +221,9 @@ pub struct FrameScene {
     pub maps: ViewMaps,
     /// The added lights' names, in E_add layer order, and their shapes (drawn where seen).
     pub lights: Vec<String>,
+    /// Added lights without baked maps (zero layers): a lighting may not light them unless
+    /// they are live.
+    pub unbaked: Vec<String>,
     pub emitters: Vec<GpuLight>,
     emitter_buf: Buffer,
     pub sampler: Sampler,
@@ -280,6 +283,7 @@ impl FrameScene {
             views,
             maps,
             lights: lights.iter().map(|l| l.name.clone()).collect(),
+            unbaked: Vec::new(),
             emitters,
             emitter_buf: Buffer::from_slice(
                 gpu,
@@ -309,6 +313,7 @@ impl FrameScene {
             .cloned()
             .collect();
         let mut fs = FrameScene::build(gpu, &mesh, &cams, &host, &added, maps)?;
+        fs.unbaked = host.unbaked.clone();
         let albedo = bakerun::albedo_file(&bakerun::cache_dir(scene, params)?);
         fs.albedo = Some(bakerun::read_albedo(&albedo, mesh.positions.len())?);
         Ok(fs)
@@ -366,10 +371,19 @@ pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
         m.msrc.push(load(&bakerun::msrc_file(&cache, &v.name))?);
         m.esrc.push(load(&bakerun::esrc_file(&cache, &v.name))?);
     }
+    let npix = (m.width * m.height) as usize;
     for l in &lights {
-        for v in &scene.views {
-            m.eadd
-                .push(load(&bakerun::eadd_file(&cache, &v.name, l, params))?);
+        let files: Vec<_> = (scene.views.iter())
+            .map(|v| bakerun::eadd_file(&cache, &v.name, l, params))
+            .collect();
+        // A light no map was baked for has not been used yet: zero layers, refused if lit.
+        if files.iter().all(|f| !f.exists()) {
+            m.unbaked.push(l.name.clone());
+            m.eadd.extend(files.iter().map(|_| vec![[0.0; 4]; npix]));
+            continue;
+        }
+        for f in &files {
+            m.eadd.push(load(f)?);
         }
     }
     Ok(m)
@@ -599,6 +613,14 @@ impl Renderer {
                 "lighting has {} intensities; the scene has {} added lights",
                 lighting.intensities.len(),
                 self.scene.lights.len()
+            )));
+        }
+        if let Some(name) = (self.scene.lights.iter().enumerate()).find_map(|(i, n)| {
+            let lit = lighting.intensities[i] != 0.0 && !self.live.is_live(i);
+            (lit && self.scene.unbaked.contains(n)).then_some(n)
+        }) {
+            return Err(Error::Other(format!(
+                "added light \"{name}\" is lit but not baked: bake it first (`relit bake SCENE --lights {name}`)"
             )));
         }
         let (width, height) = (cam.width, cam.height);

@@ -319,6 +319,17 @@ impl Scene {
         self.presets.iter().find(|p| p.name == name)
     }
 
+    /// The names of the added lights some lighting preset lights (intensity not zero).
+    pub fn preset_lights(&self) -> Vec<String> {
+        let mut v: Vec<String> = (self.presets.iter())
+            .flat_map(|p| p.intensities.iter().filter(|(_, &i)| i != 0.0))
+            .map(|(n, _)| n.clone())
+            .collect();
+        v.sort();
+        v.dedup();
+        v
+    }
+
     /// Checks what all formats share: views, cameras, lights, presets.
     pub(crate) fn validate(&self, file: &Path) -> Result<()> {
         if self.views.is_empty() {

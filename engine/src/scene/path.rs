@@ -328,6 +328,17 @@ impl CameraPath {
             .collect()
     }
 
+    /// The names of the lights some lighting keyframe lights (intensity not zero).
+    pub fn lit_lights(&self) -> Vec<String> {
+        let mut v: Vec<String> = (self.lights.iter())
+            .flat_map(|k| k.intensities.iter().filter(|(_, &i)| i != 0.0))
+            .map(|(n, _)| n.clone())
+            .collect();
+        v.sort();
+        v.dedup();
+        v
+    }
+
     /// The names of the lights some keyframe moves.
     pub fn moved_lights(&self) -> Vec<String> {
         let mut v: Vec<String> = self
