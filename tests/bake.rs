@@ -901,9 +901,9 @@ fn view_slices_bake_separately_and_join() {
     assert!(out.status.success());
     assert_eq!(
         cache_files(&d).len(),
-        2 + 2 * (4 + 2 * (1 + 2)) + 2,
-        "params.json, albedo, 4 E_src, then slice 2..4's maps, each as EXR and BC6H, and the \
-         2 lights' surface caches"
+        3 + 2 * (4 + 2 * (1 + 2)) + 2,
+        "params.json, albedo, source cache, 4 E_src, then slice 2..4's maps, each as EXR and \
+         BC6H, and the 2 lights' surface caches"
     );
     let out = relit(&[
         "bake",

@@ -384,6 +384,47 @@ fn view_adds_and_moves_a_light_under_xvfb() {
     assert!(sum > 2000.0 && (x - x_lit).abs() < w as f32 / 8.0);
 }
 
+/// A light the bake left out (`relit bake` bakes the presets' lights; here its entry is
+/// removed) is traced live when a preset turns it on in the viewer: the frame brightens at
+/// once, and the viewer writes no entry (it bakes nothing).
+#[test]
+fn view_traces_a_light_the_bake_left_out_live_under_xvfb() {
+    let s = baked_tiny("view-unbaked");
+    let d = s.parent().unwrap().to_path_buf();
+    let entries = || -> Vec<std::path::PathBuf> {
+        let mut v = Vec::new();
+        for b in std::fs::read_dir(s.join(".relit")).unwrap() {
+            for e in std::fs::read_dir(b.unwrap().path()).unwrap() {
+                let p = e.unwrap().path();
+                if p.file_name()
+                    .unwrap()
+                    .to_string_lossy()
+                    .starts_with("light-")
+                {
+                    v.push(p);
+                }
+            }
+        }
+        v
+    };
+    for e in entries() {
+        std::fs::remove_dir_all(e).unwrap();
+    }
+    // Preset 1 lights the lamp at 1 and dims the original to ½: compare with the frame of the
+    // same preset where the lamp is off, so only the lamp's light counts.
+    let lit = view_frame(&s, "1:1", 4, &d.join("lit.png"));
+    let off = view_frame(
+        &s,
+        "1:1,1:Minus,1:Minus,1:Minus,1:Minus,1:Minus,1:Minus,1:Minus,1:Minus,1:Minus,1:Minus",
+        4,
+        &d.join("off.png"),
+    );
+    let (_, sum) = centroid_x(&brighter(&lit, &off), lit.width() as usize);
+    eprintln!("the live lamp brightens the frame by {sum:.0}");
+    assert!(sum > 2000.0, "the lamp must light the frame ({sum})");
+    assert!(entries().is_empty(), "the viewer baked {:?}", entries());
+}
+
 /// A camera path may move an added light (`moves` in its lighting keyframes): `fly` renders it
 /// where the path has it, close to a render of a scene with the light baked at that place.
 #[test]

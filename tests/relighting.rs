@@ -1,8 +1,8 @@
 //! Relighting end to end against Mitsuba on a scene whose original lights few input views see
-//! (§4.1.1 with Appendix A's declared lights): the bake's irradiances must be unbiased (median
-//! ratio to the truth, not only a bounded error), and a ratio-mode render of a test view lit by
-//! the added light alone must match the ground-truth diffuse render of that condition.
-//! Validation on when installed.
+//! (§4.1.1 with Appendix A's declared lights), and on a room written by hand whose ceiling light
+//! half the views see: the bake's irradiances must be unbiased (median ratio to the truth, not
+//! only a bounded error), and a ratio-mode render of a test view lit by the added light alone
+//! must match the ground-truth diffuse render of that condition. Validation on when installed.
 
 mod common;
 
@@ -62,6 +62,74 @@ fn render_ratio(dir: &Path, camera: &str, preset: &str) -> relit_engine::scene::
     load_rgb(&out_file).unwrap()
 }
 
+/// The median luminance ratio of the ratio-mode render of each test view under `preset` (an
+/// added light alone) to the ground truth's diffuse render of `condition`, over lit pixels.
+fn ratio_renders(dir: &Path, preset: &str, condition: &str) -> Vec<f32> {
+    ["test000", "test001"]
+        .iter()
+        .map(|view| {
+            let ours = render_ratio(dir, view, preset);
+            let truth = load_rgb(&dir.join(format!("gt/{condition}/{view}.diffuse.exr"))).unwrap();
+            let ratios: Vec<f32> = ours
+                .pixels
+                .iter()
+                .zip(&truth.pixels)
+                .filter(|(o, t)| lum(**t) > 1e-3 && lum(**t) < 5.0 && lum(**o) > 0.0)
+                .map(|(o, t)| lum(*o) / lum(*t))
+                .collect();
+            assert!(
+                ratios.len() > 64 * 48 / 2,
+                "{view}: too few pixels compared"
+            );
+            let m = median(ratios);
+            eprintln!("{view}: ratio render / truth median {m:.3}");
+            m
+        })
+        .collect()
+}
+
+#[test]
+fn relighting_is_unbiased_on_a_room_written_by_hand() {
+    // tests/scenes/hand_room: a 4 × 3 × 2.5 m room of boxes written by hand (not by scenegen),
+    // a glossy floor and table top, a ceiling panel that 8 of the 16 views look up at, a small
+    // lamp; the proxy is the true geometry. Mitsuba renders its photos and truth here.
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/hand_room");
+    let dir = common::tempdir("hand-room");
+    for e in std::fs::read_dir(&src).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), dir.join(e.file_name())).unwrap();
+    }
+    common::render_ground_truth(&dir, &["--spp", "128"]);
+    let scene = Scene::load(&dir).unwrap();
+    let cov = relit_engine::scene::light_coverage(&scene);
+    assert!(cov.iter().all(|c| !c.too_few()), "{:?}", cov[0].summary());
+
+    let gpu = common::gpu();
+    let params = BakeParams::preview();
+    let report = bake(&gpu, &scene, &params, &mut |_: &str, _, _, _| {}).unwrap();
+    let a = accuracy::evaluate(&gpu, &scene, &params, &report.cache).unwrap();
+    eprintln!("{a:?}");
+    // Measured (256-spp truth): E_src 1.004 (error 0.019), albedo 0.996, E_add 0.951 (error
+    // 0.052; 0.953 at final quality). On a room like this one the issue measured E_src
+    // 1.06–1.13 and E_add 0.85–0.88 before the declared lights' NEE and the radiance mesh.
+    assert!(
+        (0.97..=1.03).contains(&a.e_src.ratio) && a.e_src.error < 0.05,
+        "E_src: {:?}",
+        a.e_src
+    );
+    let e_add = a.e_add[0].1;
+    assert!(
+        (0.93..=1.05).contains(&e_add.ratio) && e_add.error < 0.08,
+        "E_add: {e_add:?}"
+    );
+    common::assert_no_validation_errors(&gpu);
+    drop(gpu);
+    // Measured 0.939 and 0.935: the pseudo-albedo and E_add's deficits add up.
+    for m in ratio_renders(&dir, "lamp_alone", "lamp") {
+        assert!((0.9..=1.1).contains(&m), "median ratio {m:.3}");
+    }
+}
+
 #[test]
 fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
     let dir = scene_few_views_see_the_lights();
@@ -116,22 +184,7 @@ fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
             { "name": "extra0_alone", "dim": 1.0, "intensities": { "extra0": 1.0 } }
         ));
     std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
-    for view in ["test000", "test001"] {
-        let ours = render_ratio(&dir, view, "extra0_alone");
-        let truth = load_rgb(&dir.join(format!("gt/extra0/{view}.diffuse.exr"))).unwrap();
-        let ratios: Vec<f32> = ours
-            .pixels
-            .iter()
-            .zip(&truth.pixels)
-            .filter(|(o, t)| lum(**t) > 1e-3 && lum(**t) < 5.0 && lum(**o) > 0.0)
-            .map(|(o, t)| lum(*o) / lum(*t))
-            .collect();
-        assert!(
-            ratios.len() > 64 * 48 / 2,
-            "{view}: too few pixels compared"
-        );
-        let m = median(ratios);
-        eprintln!("{view}: ratio render / truth median {m:.3}");
-        assert!((0.8..=1.1).contains(&m), "{view}: median ratio {m:.3}");
+    for m in ratio_renders(&dir, "extra0_alone", "extra0") {
+        assert!((0.8..=1.1).contains(&m), "median ratio {m:.3}");
     }
 }

@@ -473,12 +473,29 @@ fn bake_bench(
         let t = std::time::Instant::now();
         let opts = (p.source_cache_samples, 1, 2);
         let v = relit_engine::bake::source_cache::trace(
-            &gpu, &si, &mesh, &radiance, &views, &layout, opts, &mut |_, _| {},
+            &gpu,
+            &si,
+            &mesh,
+            &radiance,
+            &views,
+            &layout,
+            opts,
+            &mut |_, _| {},
         )?;
         t_sc = t.elapsed().as_secs_f64();
-        Buffer::from_slice(&gpu, "source cache", vk::BufferUsageFlags::STORAGE_BUFFER, &v)?
+        Buffer::from_slice(
+            &gpu,
+            "source cache",
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            &v,
+        )?
     } else {
-        Buffer::from_slice(&gpu, "unused", vk::BufferUsageFlags::STORAGE_BUFFER, &[[0f32; 4]])?
+        Buffer::from_slice(
+            &gpu,
+            "unused",
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            &[[0f32; 4]],
+        )?
     };
     let (mut t_s, mut t_m, mut t_a) = (0.0, 0.0, 0.0);
     let n = nviews.min(scene.views.len()).max(1);

@@ -187,7 +187,7 @@ pub fn open_renderer(
 }
 
 /// The added lights `l` lights, by name.
-fn lit(scene: &Scene, l: &Lighting) -> Vec<String> {
+pub fn lit(scene: &Scene, l: &Lighting) -> Vec<String> {
     let names = relit_engine::frame::added_lights(scene);
     (names.into_iter().zip(&l.intensities))
         .filter(|(_, &i)| i != 0.0)

@@ -312,6 +312,30 @@ impl App {
         }
     }
 
+    /// A light the bake has no entry for (`relit bake` bakes the presets' lights) is traced
+    /// live from the frame it is first lit, as a moved one is: the viewer starts at once and the
+    /// light shows at the next frame, refining over ~2 s.
+    fn trace_unbaked_lights_live(&mut self) -> Result<()> {
+        let r = &self.renderer;
+        let todo: Vec<(usize, String)> = (r.scene.lights.iter().enumerate())
+            .filter(|&(i, n)| {
+                self.lighting.intensities.get(i).is_some_and(|&v| v != 0.0)
+                    && r.scene.unbaked.contains(n)
+                    && !r.live.is_live(i)
+            })
+            .map(|(i, n)| (i, n.clone()))
+            .collect();
+        for (i, name) in todo {
+            let light = (self.scene.lights.iter())
+                .find(|l| l.name == name)
+                .context("an added light left the scene")?
+                .clone();
+            eprintln!("{name}: not in the bake; traced live");
+            self.renderer.set_live_light(i, &light)?;
+        }
+        Ok(())
+    }
+
     fn draw(&mut self, el: &ActiveEventLoop) -> Result<()> {
         // A minimized window has no area to present to.
         if self.window.as_ref().is_some_and(|w| {
@@ -333,6 +357,7 @@ impl App {
         for k in due {
             self.key(k, el);
         }
+        self.trace_unbaked_lights_live()?;
         // Live lights: a few more paths per texel of their caches each frame.
         self.renderer.refine_live()?;
         let cam = self.camera();
@@ -714,18 +739,20 @@ pub fn view(opts: &GpuOptions, a: ViewArgs) -> Result<()> {
     o.swapchain = true;
     let scene = Scene::load(&a.scene)?;
     let gpu = crate::open_gpu(&o)?;
-    // Frames render at --res whatever the window size (then scaled to it).
-    let (renderer, mode) = crate::render::open_renderer(&gpu, &scene, &a.frame, Some(a.res), None)?;
+    let lighting = match &a.lighting {
+        Some(p) => Lighting::preset(&scene, p)?,
+        None => Lighting::original(&scene),
+    };
+    // Frames render at --res whatever the window size (then scaled to it). The start lighting's
+    // lights are baked now if need be; others are traced live when first lit.
+    let used = Some(crate::render::lit(&scene, &lighting));
+    let (renderer, mode) = crate::render::open_renderer(&gpu, &scene, &a.frame, Some(a.res), used)?;
     let start = match &a.camera {
         Some(c) => crate::render::resolve_camera(&scene, c, Some(a.res))?,
         None => crate::render::rescale(&scene.views[0].camera, a.res.0, a.res.1),
     };
     // Yaw/pitch of the start camera's forward axis (camera rows: right, down, forward).
     let fwd = start.rotation.row(2);
-    let lighting = match &a.lighting {
-        Some(p) => Lighting::preset(&scene, p)?,
-        None => Lighting::original(&scene),
-    };
     let surface_loader = ash::khr::surface::Instance::new(&gpu.entry, &gpu.instance);
     let acquire_sem = unsafe {
         gpu.device
