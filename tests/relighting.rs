@@ -62,6 +62,17 @@ fn render_ratio(dir: &Path, camera: &str, preset: &str) -> relit_engine::scene::
     load_rgb(&out_file).unwrap()
 }
 
+/// A preview bake of `scene` (validation on) and its accuracy against the ground truth.
+fn bake_and_evaluate(scene: &Scene) -> accuracy::Accuracy {
+    let gpu = common::gpu();
+    let params = BakeParams::preview();
+    let report = bake(&gpu, scene, &params, &mut |_: &str, _, _, _| {}).unwrap();
+    let a = accuracy::evaluate(&gpu, scene, &params, &report.cache).unwrap();
+    eprintln!("{a:?}");
+    common::assert_no_validation_errors(&gpu);
+    a
+}
+
 /// The median luminance ratio of the ratio-mode render of each test view under `preset` (an
 /// added light alone) to the ground truth's diffuse render of `condition`, over lit pixels.
 fn ratio_renders(dir: &Path, preset: &str, condition: &str) -> Vec<f32> {
@@ -104,11 +115,7 @@ fn relighting_is_unbiased_on_a_room_written_by_hand() {
     let cov = relit_engine::scene::light_coverage(&scene);
     assert!(cov.iter().all(|c| !c.too_few()), "{:?}", cov[0].summary());
 
-    let gpu = common::gpu();
-    let params = BakeParams::preview();
-    let report = bake(&gpu, &scene, &params, &mut |_: &str, _, _, _| {}).unwrap();
-    let a = accuracy::evaluate(&gpu, &scene, &params, &report.cache).unwrap();
-    eprintln!("{a:?}");
+    let a = bake_and_evaluate(&scene);
     // Measured (256-spp truth): E_src 1.004 (error 0.019), albedo 0.996, E_add 0.951 (error
     // 0.052; 0.953 at final quality). On a room like this one the issue measured E_src
     // 1.06–1.13 and E_add 0.85–0.88 before the declared lights' NEE and the radiance mesh.
@@ -122,8 +129,6 @@ fn relighting_is_unbiased_on_a_room_written_by_hand() {
         (0.93..=1.05).contains(&e_add.ratio) && e_add.error < 0.08,
         "E_add: {e_add:?}"
     );
-    common::assert_no_validation_errors(&gpu);
-    drop(gpu);
     // Measured 0.939 and 0.935: the pseudo-albedo and E_add's deficits add up.
     for m in ratio_renders(&dir, "lamp_alone", "lamp") {
         assert!((0.9..=1.1).contains(&m), "median ratio {m:.3}");
@@ -141,11 +146,7 @@ fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
         cov.iter().map(|c| c.summary()).collect::<Vec<_>>()
     );
 
-    let gpu = common::gpu();
-    let params = BakeParams::preview();
-    let report = bake(&gpu, &scene, &params, &mut |_: &str, _, _, _| {}).unwrap();
-    let a = accuracy::evaluate(&gpu, &scene, &params, &report.cache).unwrap();
-    eprintln!("{a:?}");
+    let a = bake_and_evaluate(&scene);
     // Before next-event estimation of the declared lights, E_src was half the truth on such a
     // scene (the direct light of a panel no view sees was dropped). Measured 1.019 (0.992 with
     // the mean fill); the direct light of the window alone is 1.06 on the floor here, 1.017
@@ -166,8 +167,6 @@ fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
         (0.87..=1.05).contains(&e_add.ratio) && e_add.error < 0.15,
         "E_add: {e_add:?}"
     );
-    common::assert_no_validation_errors(&gpu);
-    drop(gpu);
 
     // The added light alone (original lighting removed: α_dim = 1), ratio mode, vs Mitsuba's
     // diffuse render of that condition, median per-pixel luminance ratio over lit, non-emitter
