@@ -7,9 +7,11 @@ RELIT names the relit binary (default: target/debug/relit, what `cargo test` bui
 """
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -65,6 +67,29 @@ class TrainerTest(unittest.TestCase):
         self.assertEqual([r["step"] for r in la], list(range(1, 7)))
         self.assertTrue(any("val" in r and r["val"] is not None for r in la), "no validation loss")
         self.assertTrue(os.path.exists(os.path.join(whole, "curves.png")))
+
+    def test_a_signal_stops_the_run_at_a_checkpoint_that_resumes(self):
+        run = self.run_dir("signal")
+        args = [sys.executable, os.path.join(HERE, "train.py"), "--data", self.data, "--out", run,
+                "--width", "8", "--crop", "16", "--val-every", "1000", "--threads", "1",
+                "--vgg", "0", "--steps", "100000", "--checkpoint-minutes", "1000"]
+        p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        logfile = os.path.join(run, "log.jsonl")
+        deadline = time.time() + 300
+        while time.time() < deadline and p.poll() is None:
+            if os.path.exists(logfile) and len(read(logfile).splitlines()) >= 3:
+                break
+            time.sleep(0.2)
+        p.send_signal(signal.SIGTERM)
+        out, err = p.communicate(timeout=300)
+        self.assertEqual(p.returncode, 0, err)
+        self.assertIn("stopping on a signal", out)
+        steps = [r["step"] for r in log(run)]
+        self.assertGreaterEqual(len(steps), 3)
+        # The checkpoint holds the last logged step, and --resume continues from it.
+        r = train(self.data, run, "--steps", str(steps[-1] + 2), "--resume")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual([r["step"] for r in log(run)], list(range(1, steps[-1] + 3)))
 
     def test_perceptual_terms_train_and_resume_only_with_the_same_weight(self):
         run = self.run_dir("vgg")

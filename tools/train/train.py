@@ -25,6 +25,7 @@ import glob
 import json
 import os
 import random
+import signal
 import sys
 import time
 
@@ -313,6 +314,10 @@ def main():
                          "disc": disc.state_dict() if disc is not None else None,
                          "disc_optimizer": opt_d.state_dict() if opt_d is not None else None}, ckpt)
 
+    # SIGTERM or Ctrl-C: finish the step, checkpoint, and exit cleanly (a session's end, `kill`).
+    stop = []
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda signum, _frame: stop.append(signum))
     log = open(os.path.join(a.out, "log.jsonl"), "a") if lead else None
     t0 = last_ckpt = time.time()
     start = step
@@ -341,7 +346,12 @@ def main():
                   f"{rate:.2f} s/step, ETA {(a.steps - step) * rate / 60:.0f} min", flush=True)
         if lead:
             log.write(json.dumps(row) + "\n")
-        # Every process decides alike when to checkpoint (the gather is collective).
+        # Every process decides alike when to checkpoint or stop (the gathers are collective).
+        if any(dd.gather(bool(stop))):
+            if lead:
+                print(f"step {step}: stopping on a signal; --resume continues from here",
+                      flush=True)
+            break
         due = dd.gather(time.time() - last_ckpt > 60 * a.checkpoint_minutes)[0]
         if due:
             if lead:
