@@ -116,9 +116,10 @@ fn relighting_is_unbiased_on_a_room_written_by_hand() {
     assert!(cov.iter().all(|c| !c.too_few()), "{:?}", cov[0].summary());
 
     let a = bake_and_evaluate(&scene);
-    // Measured (256-spp truth): E_src 1.004 (error 0.019), albedo 0.996, E_add 0.951 (error
-    // 0.052; 0.953 at final quality). On a room like this one the issue measured E_src
-    // 1.06–1.13 and E_add 0.85–0.88 before the declared lights' NEE and the radiance mesh.
+    // Measured: E_src 1.005 (error 0.025), albedo 0.994, E_add 0.959 (error 0.048); 0.951
+    // while the albedo mesh made the ceiling under the panel black. On a room like this one the
+    // issue measured E_src 1.06–1.13 and E_add 0.85–0.88 before the declared lights' NEE and
+    // the radiance mesh. With the floor and table diffuse instead of glossy, E_add is 0.964.
     assert!(
         (0.97..=1.03).contains(&a.e_src.ratio) && a.e_src.error < 0.05,
         "E_src: {:?}",
@@ -126,10 +127,10 @@ fn relighting_is_unbiased_on_a_room_written_by_hand() {
     );
     let e_add = a.e_add[0].1;
     assert!(
-        (0.93..=1.05).contains(&e_add.ratio) && e_add.error < 0.08,
+        (0.95..=1.05).contains(&e_add.ratio) && e_add.error < 0.07,
         "E_add: {e_add:?}"
     );
-    // Measured 0.939 and 0.935: the pseudo-albedo and E_add's deficits add up.
+    // Measured 0.945 and 0.941 (0.939 and 0.935 with black light vertices).
     for m in ratio_renders(&dir, "lamp_alone", "lamp") {
         assert!((0.9..=1.1).contains(&m), "median ratio {m:.3}");
     }
@@ -156,23 +157,23 @@ fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
         "E_src biased: {:?}",
         a.e_src
     );
-    // Measured 0.898, error 0.118 (0.943 when E_src filled the rays no view saw with the mean
-    // of the others, which was biased high elsewhere; 0.81 and 0.34 with black unseen vertices,
-    // 3 bounces and no filter; 1.05 with the original lights' white pixels in the albedo mesh).
-    // The deficit follows the albedo mesh (0.966 of the truth): with the true albedo at every
-    // vertex, on the true mesh, E_add is 0.994 of the truth. The issue's 0.95 is not reached.
+    // Measured 0.970, error 0.080. It was 0.898 (error 0.118) while the albedo mesh made the
+    // proxy black under the declared lights: the truth renders a light that is off as absent,
+    // so the wall behind the window and the ceiling above the panel reflect the added light.
+    // Before that: 0.81 and 0.34 with black unseen vertices, 3 bounces and no filter; 1.05
+    // with the lights' emission taken as albedo (white).
     assert_eq!(a.e_add.len(), 1);
     let e_add = a.e_add[0].1;
     assert!(
-        (0.87..=1.05).contains(&e_add.ratio) && e_add.error < 0.15,
+        (0.95..=1.05).contains(&e_add.ratio) && e_add.error < 0.10,
         "E_add: {e_add:?}"
     );
 
     // The added light alone (original lighting removed: α_dim = 1), ratio mode, vs Mitsuba's
     // diffuse render of that condition, median per-pixel luminance ratio over lit, non-emitter
-    // pixels. Measured 0.841 on test000 (0.889 and 0.866 when E_src filled the rays no view
-    // saw with the mean of the others; 1.6–1.7 when E_src lost the panel): E_add's deficit and
-    // the pseudo-albedo's add up; the issue's 0.9–1.1 is not reached on these views.
+    // pixels. Measured 0.888 and 0.871 (0.841 with black light vertices; 1.6–1.7 when E_src
+    // lost the panel): the pseudo-albedo's deficit (0.967) and E_add's add up; the issue's
+    // 0.9–1.1 is not quite reached on these views.
     let path = dir.join("scene.json");
     let mut doc: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
@@ -184,6 +185,6 @@ fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
         ));
     std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
     for m in ratio_renders(&dir, "extra0_alone", "extra0") {
-        assert!((0.8..=1.1).contains(&m), "median ratio {m:.3}");
+        assert!((0.85..=1.1).contains(&m), "median ratio {m:.3}");
     }
 }

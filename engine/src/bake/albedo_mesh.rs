@@ -8,6 +8,7 @@ use glam::Vec3;
 use super::views::{GpuViews, ViewData};
 use crate::error::Result;
 use crate::gpu::{bytes_of, Bind, Buffer, Gpu, Pipeline, RayScene};
+use crate::scene::Light;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -16,16 +17,23 @@ struct Push {
     width: u32,
     height: u32,
     nviews: u32,
+    nlights: u32,
 }
 
 pub struct AlbedoMesh {
     pipeline: Pipeline,
+    lights: Buffer,
+    nlights: u32,
 }
 
 impl AlbedoMesh {
-    pub fn new(gpu: &Arc<Gpu>) -> Result<AlbedoMesh> {
+    /// `lights`: the scene's lights; pixels on or beside the original ones are no samples.
+    pub fn new(gpu: &Arc<Gpu>, lights: &[Light]) -> Result<AlbedoMesh> {
+        let (lights, nlights) = super::source_irradiance::lights_buffer(gpu, lights)?;
         Ok(AlbedoMesh {
             pipeline: Pipeline::compute(gpu, "bake/albedo_mesh.comp")?,
+            lights,
+            nlights,
         })
     }
 
@@ -43,12 +51,14 @@ impl AlbedoMesh {
             width: views.width,
             height: views.height,
             nviews: views.count,
+            nlights: self.nlights,
         };
         super::views::run_vertices(&self.pipeline.gpu, nverts, |cmd, out| {
             let mut binds = vec![
                 (4, Bind::Buffer(&mesh.positions)),
                 (5, Bind::Buffer(e_src)),
                 (6, Bind::Buffer(out)),
+                (7, Bind::Buffer(&self.lights)),
             ];
             binds.extend(views.binds(0));
             self.pipeline
@@ -57,15 +67,23 @@ impl AlbedoMesh {
     }
 }
 
-/// CPU reference.
-pub fn reference(positions: &[[f32; 3]], d: &ViewData, e_src: &[[f32; 4]]) -> Vec<[f32; 4]> {
+/// CPU reference (`lights`: the declared original lights).
+pub fn reference(
+    positions: &[[f32; 3]],
+    d: &ViewData,
+    e_src: &[[f32; 4]],
+    lights: &[super::GpuLight],
+) -> Vec<[f32; 4]> {
     positions
         .iter()
         .map(|p| {
             let p = Vec3::from(*p);
             let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
             for j in 0..d.cameras.len() {
-                let Some(q) = d.visible_pixel(j, p) else {
+                let Some(q) = d
+                    .visible_pixel(j, p)
+                    .filter(|&q| !super::source_irradiance::near_light(d, lights, q))
+                else {
                     continue;
                 };
                 let e = e_src[q];
@@ -141,55 +159,9 @@ pub fn fill_unseen(triangles: &[[u32; 3]], albedo: &mut [[f32; 4]]) {
     }
 }
 
-/// Makes the proxy black where a declared original light sits. Its pixels are the emitter's
-/// radiance, not reflected light, so π·I/E_src there means nothing (it clamps to 1), and a lamp
-/// that is off reflects little: the ground truth models lights as black shapes. A white window
-/// or ceiling panel in the albedo mesh sent the added lights' indirect light back into the room
-/// (E_add 1.08× the truth on a scene with a 1 m² window).
-pub fn darken_lights(positions: &[[f32; 3]], lights: &[super::GpuLight], albedo: &mut [[f32; 4]]) {
-    use super::source_irradiance::LIGHT_SKIN;
-    for (p, a) in positions.iter().zip(albedo.iter_mut()) {
-        let p = Vec3::from(*p);
-        if lights.iter().any(|l| l.near(p, LIGHT_SKIN, 0.0)) {
-            a[0] = 0.0;
-            a[1] = 0.0;
-            a[2] = 0.0;
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
-    use super::{darken_lights, fill_unseen};
-    use crate::bake::GpuLight;
-    use crate::scene::{Light, LightShape};
-    use glam::Vec3;
-
-    #[test]
-    fn vertices_on_a_declared_light_are_black() {
-        let light = GpuLight::new(&Light {
-            name: "panel".into(),
-            // Faces down (X × Z = −Y), 1 m above the origin.
-            shape: LightShape::Quad {
-                corner: Vec3::new(0.0, 1.0, 0.0),
-                edge_u: Vec3::X,
-                edge_v: Vec3::Z,
-            },
-            radiance: [5.0; 3],
-            original: true,
-        });
-        let pos = [
-            [0.5, 1.01, 0.5],
-            [0.5, 0.9, 0.5],
-            [1.5, 1.0, 0.5],
-            [0.2, 0.995, 0.9],
-        ];
-        let mut a = vec![[0.7f32, 0.7, 0.7, 1.0]; 4];
-        darken_lights(&pos, &[light], &mut a);
-        let black: Vec<bool> = a.iter().map(|x| x[0] == 0.0).collect();
-        assert_eq!(black, [true, false, false, true]);
-        assert!(a.iter().all(|x| x[3] == 1.0), "weights are kept");
-    }
+    use super::fill_unseen;
 
     #[test]
     fn unseen_vertices_take_their_neighbours_albedo() {

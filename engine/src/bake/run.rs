@@ -22,7 +22,7 @@ use crate::scene::image::{load_rgb, write_exr, RgbImage};
 use crate::scene::{write_atomic, Light, Scene};
 
 /// Bump when a pass changes what it computes: old caches are then not reused.
-pub const BAKE_VERSION: u32 = 7;
+pub const BAKE_VERSION: u32 = 8;
 
 #[derive(Clone, Debug)]
 pub struct BakeParams {
@@ -599,10 +599,9 @@ pub fn bake(
             vk::BufferUsageFlags::STORAGE_BUFFER,
             &e_all,
         )?;
-        let mut a = AlbedoMesh::new(gpu)?.run(&mesh, nverts as u32, &views, &eb)?;
+        let mut a = AlbedoMesh::new(gpu, &scene.lights)?.run(&mesh, nverts as u32, &views, &eb)?;
+        // Vertices on a declared light have no samples: they take their neighbours' albedo.
         super::albedo_mesh::fill_unseen(&geom.triangles, &mut a);
-        let lights = super::source_irradiance::original_lights(&scene.lights);
-        super::albedo_mesh::darken_lights(&geom.positions, &lights, &mut a);
         write_albedo(&albedo_file(&cache), &a)?;
         report
             .stages
