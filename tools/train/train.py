@@ -56,11 +56,16 @@ def load_split(folder):
 
 
 def random_lighting(sample, rng):
-    """α_dim and added-light intensities: original kept, dimmed or off, lamps on at random."""
+    """α_dim (0 keeps the original light, 1 removes it) and added-light intensities: one draw
+    in six the original lighting (what the photos show, what users see first), else the
+    original kept, dimmed or off with lamps on at random, at least one."""
+    n = len(sample.lights)
+    if n == 0 or rng.random() < 1.0 / 6.0:
+        return 0.0, [0.0] * n   # α_dim 0: the original light untouched
     alpha = rng.choice([0.0, rng.random(), 1.0])
     intens = [rng.uniform(0.25, 2.0) if rng.random() < 0.5 else 0.0 for _ in sample.lights]
-    if alpha == 1.0 and not any(intens) and sample.lights:
-        intens[rng.randrange(len(intens))] = rng.uniform(0.25, 2.0)
+    if not any(intens):
+        intens[rng.randrange(n)] = rng.uniform(0.25, 2.0)
     return alpha, intens
 
 
@@ -130,6 +135,11 @@ def plot(run):
         ax.plot(steps[k - 1:], smooth, label=f"training (mean of {k})")
     if va:
         ax.plot(*zip(*va), "o-", label="validation")
+    for r in rows:
+        if "data" in r and r["step"] > 0:
+            ax.axvline(r["step"], color="gray", linestyle="--", linewidth=0.8)
+            ax.annotate("data: " + os.path.basename(r["data"]), (r["step"], 0.98),
+                        xycoords=("data", "axes fraction"), fontsize=7, va="top")
     ax.set_xlabel("step")
     ax.set_ylabel("loss (§5.3 L1 terms)")
     ax.set_yscale("log")
@@ -300,6 +310,10 @@ def main():
         torch.set_rng_state(c["rng"][dd.rank]["torch"].cpu())
         if lead:
             trim_log(a.out, step)
+            if os.path.abspath(a.data) != c.get("data"):
+                # Fine-tuning on other data: the log and curves.png mark where it began.
+                with open(os.path.join(a.out, "log.jsonl"), "a") as f:
+                    f.write(json.dumps({"step": step, "data": os.path.abspath(a.data)}) + "\n")
     elif os.path.exists(ckpt):
         sys.exit(f"{ckpt} exists: pass --resume to continue it, or choose another --out")
     elif lead:
@@ -311,6 +325,7 @@ def main():
         if lead:
             save_atomic({"model": net.state_dict(), "optimizer": opt.state_dict(), "step": step,
                          "rng": states, "config": net.config, "terms": terms,
+                         "data": os.path.abspath(a.data),
                          "disc": disc.state_dict() if disc is not None else None,
                          "disc_optimizer": opt_d.state_dict() if opt_d is not None else None}, ckpt)
 
