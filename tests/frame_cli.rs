@@ -59,8 +59,8 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
         "bc6h",
     ]);
     assert!(
-        notice.contains("ULR"),
-        "the ULR fallback is announced: {notice}"
+        notice.contains("(Network)") && !notice.contains("notice"),
+        "the shipped network renders by default: {notice}"
     );
     let img = png(&out_png);
     assert_eq!(img.dimensions(), (32, 24));
@@ -80,6 +80,8 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
         "lamp_on_dimmed",
         "--maps",
         "rgba16f",
+        "--mode",
+        "ulr",
     ]);
     let scene = relit_engine::scene::Scene::load(&s).unwrap();
     let input = relit_engine::scene::image::load_rgb(&scene.views[0].image).unwrap();
@@ -201,13 +203,16 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
         sp,
         "--camera",
         "0",
-        "--mode",
-        "network",
+        "--weights",
+        pp,
         "--out",
         "/tmp/x.png",
     ]);
     assert_ne!(code, 0);
-    assert!(se.contains("--weights"), "{se}");
+    assert!(
+        se.contains("path.json") && se.contains("safetensors"),
+        "{se}"
+    );
     std::fs::write(
         &path,
         r#"{ "keyframes": [ { "time": 0, "position": [0,1,0], "fov_deg": 70 } ] }"#,

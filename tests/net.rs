@@ -171,6 +171,33 @@ fn network_matches_pytorch_golden() {
     common::assert_no_validation_errors(&gpu);
 }
 
+/// The trained network built into relit against PyTorch (float64) on a random input: the
+/// golden file is of these weights (their metadata match), and fp32 storage is within 1e-4 of
+/// the output's largest magnitude, as for random weights.
+#[test]
+fn shipped_network_matches_pytorch_golden() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
+    let io = std::fs::read(dir.join("net_shipped.io.safetensors")).unwrap();
+    let (_, meta) = safetensors::SafeTensors::read_metadata(&io).unwrap();
+    let (_, shipped) = safetensors::SafeTensors::read_metadata(relit_engine::net::SHIPPED).unwrap();
+    for key in ["relit.net", "relit.trained"] {
+        assert_eq!(
+            meta.metadata().as_ref().unwrap().get(key),
+            shipped.metadata().as_ref().unwrap().get(key),
+            "{key}: tests/golden/net_shipped.io.safetensors is stale \
+             (tools/train/golden.py tests/golden --shipped engine/weights/relit.safetensors)"
+        );
+    }
+    let (_, x, y, shape) = golden("net_shipped");
+    let gpu = common::gpu();
+    let net = Network::shipped(&gpu, Storage::F32).unwrap();
+    let got = net.run(&x, shape[1] as u32, shape[2] as u32).unwrap();
+    let (e, s) = max_err(&got, &y);
+    eprintln!("shipped network: max error {e} (output scale {s})");
+    assert!(e <= 1e-4 * s, "shipped network: max error {e}, scale {s}");
+    common::assert_no_validation_errors(&gpu);
+}
+
 #[test]
 fn network_weights_errors_name_the_problem() {
     let gpu = common::gpu();

@@ -1,15 +1,12 @@
 #!/usr/bin/env bash
 # The main job on the bundled scene: sets the machine up (tools/setup.sh), reports the device,
-# checks and bakes scenes/demo_room (preview quality, ~5 min on 2 cores; a second run finds
+# checks and bakes scenes/demo_room (preview quality, 75 s on 2 cores; a second run finds
 # everything cached), renders one novel view and records a walk through the room (paths/walk.json:
 # the TV and the window's reflection on the floor, the table, the bed, the shelf; the lamp by the
 # TV switches on, the original light dims to 30%, the lamp moves mid-room and on towards the bed,
-# and the original light returns) to out/demo_room_fly.mp4 (and, relit without a network,
-# out/demo_room_fly_ratio.mp4).
-#
-# With trained weights at tools/train/weights/relit.safetensors the frames come from the
-# network; none ship yet, so the default is the ULR baseline (the I_1 composite), and relit
-# says so.
+# and the original light returns) to out/demo_room_fly.mp4 with the trained network that ships
+# inside relit (engine/weights/), and relit without a network (eq. 5's diffuse ratio rule) to
+# out/demo_room_fly_ratio.mp4 for comparison.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
@@ -19,14 +16,9 @@ S=scenes/demo_room
 $R info
 $R scene check $S
 $R bake $S --quality preview
-WEIGHTS=()
-if [ -f tools/train/weights/relit.safetensors ]; then
-  WEIGHTS=(--weights tools/train/weights/relit.safetensors)
-fi
 mkdir -p out
-$R render $S --camera test003 --lighting extra0_on_dimmed --out out/demo_room_test003.png "${WEIGHTS[@]}"
-$R fly $S --path $S/paths/walk.json --out out/demo_room_fly.mp4 --res 256x192 --fps 12 "${WEIGHTS[@]}"
-# The same path relit without a network (diffuse: eq. 5's pseudo-albedo rule on the composite),
-# so the path's lighting keyframes show.
+$R render $S --camera test003 --lighting extra0_on_dimmed --out out/demo_room_test003.png
+$R fly $S --path $S/paths/walk.json --out out/demo_room_fly.mp4 --res 256x192 --fps 12
+# The same path relit without the network (diffuse: eq. 5's pseudo-albedo rule on the composite).
 $R fly $S --path $S/paths/walk.json --out out/demo_room_fly_ratio.mp4 --res 256x192 --fps 12 --mode ratio
 echo "main job done: out/demo_room_fly.mp4, out/demo_room_fly_ratio.mp4, out/demo_room_test003.png"

@@ -48,7 +48,8 @@ pub enum BenchCmd {
     },
     /// Whole frames of a baked scene along its test path (or its views): GPU time per pass
     /// (G-buffer, reproject, irradiance, target mirror, features, each network stage, output),
-    /// fps median and p95. Without --weights the network has random weights of --width.
+    /// fps median and p95. The network is the shipped one, or --weights, or random weights of
+    /// --width.
     Frame {
         scene: PathBuf,
         #[arg(long, default_value = "256x192", value_parser = crate::parse_res)]
@@ -56,9 +57,9 @@ pub enum BenchCmd {
         /// Timed frames after one warm-up frame.
         #[arg(long, default_value_t = 5)]
         frames: u32,
-        /// Network width when no weights are given.
-        #[arg(long, default_value_t = 66)]
-        width: u32,
+        /// A network of this width with random weights instead of the trained one.
+        #[arg(long)]
+        width: Option<u32>,
         #[arg(long)]
         json: Option<PathBuf>,
         #[command(flatten)]
@@ -617,7 +618,7 @@ fn light_bench(
     let gpu = crate::open_gpu(opts)?;
     let mut args = fa.clone();
     args.mode = Some(crate::render::ModeArg::Ratio);
-    let (mut r, _) = crate::render::open_renderer(&gpu, &scene, &args, None, None)?;
+    let (mut r, _) = crate::render::open_renderer(&gpu, &scene, &args, None, None, false)?;
     let added: Vec<&relit_engine::scene::Light> =
         scene.lights.iter().filter(|l| !l.original).collect();
     let Some(first) = added.first() else {
@@ -845,7 +846,7 @@ fn frame_bench(
     dir: &std::path::Path,
     (w, h): (u32, u32),
     frames: u32,
-    width: u32,
+    width: Option<u32>,
     json: Option<&PathBuf>,
     fa: &crate::render::FrameArgs,
     opts: &GpuOptions,
@@ -855,12 +856,16 @@ fn frame_bench(
     let scene = relit_engine::scene::Scene::load(dir)?;
     let gpu = crate::open_gpu(opts)?;
     let mut args = fa.clone();
-    let random_net = args.weights.is_none() && args.mode != Some(crate::render::ModeArg::Ulr);
+    let random_net = width.is_some() && args.mode != Some(crate::render::ModeArg::Ulr);
     if random_net {
+        if args.weights.is_some() {
+            anyhow::bail!("--width gives the network random weights: it takes no --weights");
+        }
         args.mode = Some(crate::render::ModeArg::Ulr);
     }
-    let (r, mut mode) = crate::render::open_renderer(&gpu, &scene, &args, Some((w, h)), None)?;
-    let mut r = if random_net {
+    let (r, mut mode) =
+        crate::render::open_renderer(&gpu, &scene, &args, Some((w, h)), None, false)?;
+    let mut r = if let (true, Some(width)) = (random_net, width) {
         let storage = args.storage.resolve(&gpu.caps, Some((w, h)));
         let net = Network::from_params(
             NetKernels::new(&gpu, storage)?,

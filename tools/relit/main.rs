@@ -377,6 +377,7 @@ fn info(opts: &GpuOptions) -> Result<()> {
             relit_engine::net::describe_backend(c, storage)
         );
     }
+    println!("trained network: {}", shipped_network());
     println!("limits:");
     println!(
         "  maxStorageBufferRange              {} MiB",
@@ -783,4 +784,35 @@ fn main() {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// The built-in weights' width and provenance, from their metadata.
+fn shipped_network() -> String {
+    let meta = safetensors::SafeTensors::read_metadata(relit_engine::net::SHIPPED)
+        .ok()
+        .and_then(|(_, m)| m.metadata().clone())
+        .unwrap_or_default();
+    let field = |key: &str, f: &str| -> String {
+        meta.get(key)
+            .and_then(|j| serde_json::from_str::<serde_json::Value>(j).ok())
+            .and_then(|v| v.get(f).map(|x| x.to_string()))
+            .unwrap_or_else(|| "?".into())
+    };
+    let averaged = meta
+        .get("relit.trained")
+        .and_then(|j| serde_json::from_str::<serde_json::Value>(j).ok())
+        .and_then(|v| v.get("averaged_with").cloned())
+        .and_then(|v| v.as_array().cloned())
+        .map(|a| {
+            let steps: Vec<String> = a.iter().map(|e| e["step"].to_string()).collect();
+            format!(" averaged with step {}", steps.join(", "))
+        })
+        .unwrap_or_default();
+    format!(
+        "width {}, run {} at step {}{averaged}, built into relit from {}",
+        field("relit.net", "width"),
+        field("relit.trained", "run").trim_matches('"'),
+        field("relit.trained", "step"),
+        relit_engine::net::SHIPPED_NAME
+    )
 }

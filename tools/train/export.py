@@ -1,13 +1,19 @@
 """Exports the weights of a run's latest checkpoint without stopping the run: the engine's
 weights file (`relit render --weights W`) and the run's curves.png.
 
-    python tools/train/export.py RUN [--out W] [--dtype f16|f32]
+    python tools/train/export.py RUN [--out W] [--dtype f16|f32] [--average W1 ...]
 
 The file is written atomically (temporary file, rename). fp16 halves the size; the engine
 computes in fp32 either way, and its fp16-storage path rounds the weights to fp16 anyway.
+
+`--average` exports the mean of the checkpoint's weights and those of earlier exports of the
+same network (stochastic weight averaging: a run that oscillates between checkpoints, as ours
+does under the adversarial term, can be better at their mean than at either); their steps go
+into the "relit.trained" metadata.
 """
 
 import argparse
+import json
 import os
 import sys
 
@@ -18,15 +24,38 @@ import model as M  # noqa: E402
 from train import plot  # noqa: E402
 
 
-def export(run, out, dtype):
+def trained_step(path):
+    from safetensors import safe_open
+    with safe_open(path, framework="pt") as f:
+        meta = f.metadata() or {}
+    return json.loads(meta.get("relit.trained", "{}")).get("step")
+
+
+def average_into(net, files):
+    """Replaces net's parameters by their mean with the networks in `files` (same config)."""
+    state = {k: v.clone().float() for k, v in net.state_dict().items()}
+    for path in files:
+        other = M.load(path)
+        if other.config != net.config:
+            sys.exit(f"{path}: network {other.config} differs from the run's {net.config}")
+        for k, v in other.state_dict().items():
+            state[k] += v.float()
+    net.load_state_dict({k: v / (1 + len(files)) for k, v in state.items()})
+    return [{"file": os.path.basename(p), "step": trained_step(p)} for p in files]
+
+
+def export(run, out, dtype, average=()):
     ckpt = os.path.join(run, "checkpoint.pt")
     if not os.path.isfile(ckpt):
         sys.exit(f"{ckpt}: no checkpoint (expected a run directory written by train.py)")
     c = torch.load(ckpt, weights_only=False, map_location="cpu")
     net = M.RelightNet(**c["config"])
     net.load_state_dict(c["model"])
+    trained = {"run": os.path.basename(os.path.abspath(run)), "step": c["step"]}
+    if average:
+        trained["averaged_with"] = average_into(net, average)
     tmp = out + ".tmp"
-    M.save(net, tmp, dtype={"f16": torch.float16, "f32": torch.float32}[dtype])
+    M.save(net, tmp, dtype={"f16": torch.float16, "f32": torch.float32}[dtype], trained=trained)
     os.replace(tmp, out)
     plot(run)
     return c["step"]
@@ -37,10 +66,13 @@ def main():
     ap.add_argument("run", help="a run directory (checkpoint.pt, log.jsonl)")
     ap.add_argument("--out", help="weights file (default: RUN/weights.safetensors)")
     ap.add_argument("--dtype", choices=["f16", "f32"], default="f32")
+    ap.add_argument("--average", nargs="+", default=[], metavar="W",
+                    help="weights files of the same network to average with the checkpoint's")
     a = ap.parse_args()
     out = a.out or os.path.join(a.run, "weights.safetensors")
-    step = export(a.run, out, a.dtype)
-    print(f"{out}: step {step}, {os.path.getsize(out) / 1e6:.1f} MB ({a.dtype})")
+    step = export(a.run, out, a.dtype, a.average)
+    print(f"{out}: step {step}, {os.path.getsize(out) / 1e6:.1f} MB ({a.dtype})"
+          + (f", averaged with {', '.join(a.average)}" if a.average else ""))
 
 
 if __name__ == "__main__":

@@ -3,6 +3,12 @@ weights (every parameter random, including the fixup scalars and the zero-initia
 convs) and a random input, with the PyTorch output computed in float64.
 
   python3 tools/train/golden.py tests/golden
+
+and, whenever the shipped weights change, the output of the trained network built into relit
+(engine/weights/relit.safetensors) on a random input, with the weights' metadata copied so that
+the test can tell a stale file:
+
+  python3 tools/train/golden.py tests/golden --shipped engine/weights/relit.safetensors
 """
 import sys
 from pathlib import Path
@@ -52,5 +58,23 @@ def main(out):
         print(name, tuple(y.shape), float(y.abs().max()))
 
 
+def shipped(out, weights):
+    from safetensors import safe_open
+    with safe_open(weights, framework="pt") as f:
+        meta = f.metadata()
+    net = M.load(weights).double()
+    gen = torch.Generator().manual_seed(2021)
+    x = torch.rand((1, net.config["in_channels"], 24, 32), generator=gen, dtype=torch.float64)
+    with torch.no_grad():
+        y = net(x)
+    save_file({"input": x[0].float().contiguous(), "output": y[0].float().contiguous()},
+              Path(out) / "net_shipped.io.safetensors",
+              metadata={"relit.net": meta["relit.net"], "relit.trained": meta["relit.trained"]})
+    print("net_shipped", tuple(y.shape), float(y.abs().max()))
+
+
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "tests/golden")
+    if len(sys.argv) == 4 and sys.argv[2] == "--shipped":
+        shipped(sys.argv[1], sys.argv[3])
+    else:
+        main(sys.argv[1] if len(sys.argv) > 1 else "tests/golden")

@@ -98,10 +98,14 @@ class RelightNet(nn.Module):
         return sum(counts)
 
 
-def save(model, path, dtype=torch.float32):
+def save(model, path, dtype=torch.float32, trained=None):
+    """`trained`: how the weights were made (a dict stored as JSON under "relit.trained")."""
     from safetensors.torch import save_file
     tensors = {k: v.detach().to(dtype).contiguous() for k, v in model.state_dict().items()}
-    save_file(tensors, path, metadata={"relit.net": json.dumps(model.config, sort_keys=True)})
+    meta = {"relit.net": json.dumps(model.config, sort_keys=True)}
+    if trained is not None:
+        meta["relit.trained"] = json.dumps(trained, sort_keys=True)
+    save_file(tensors, path, metadata=meta)
 
 
 def load(path):

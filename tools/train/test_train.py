@@ -145,6 +145,19 @@ class TrainerTest(unittest.TestCase):
                            capture_output=True, text=True)
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertTrue(os.path.getsize(out) > 0)
+        # Weight averaging: the run's mean with an earlier export of it is their mean.
+        sys.path.insert(0, HERE)
+        import model as M
+        early = os.path.join(self.tmp.name, "early.safetensors")
+        M.save(M.RelightNet(width=8), early)
+        avg = os.path.join(self.tmp.name, "avg.safetensors")
+        r = subprocess.run([sys.executable, os.path.join(HERE, "export.py"), run, "--out", avg,
+                            "--average", early], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        a, b, m = (M.load(p).state_dict() for p in
+                   (os.path.join(run, "weights.safetensors"), early, avg))
+        for k in a:
+            self.assertTrue(((a[k] + b[k]) / 2 - m[k]).abs().max() < 1e-6, k)
 
 
 class SceneScaleTest(unittest.TestCase):

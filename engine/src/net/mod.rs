@@ -11,7 +11,9 @@ pub use conv::{
     Storage, Tensor, OCB,
 };
 pub use gemm::Gemm;
-pub use model::{NetBuffers, NetConfig, Network, Params, RandomParams, SafetensorsParams};
+pub use model::{
+    NetBuffers, NetConfig, Network, Params, RandomParams, SafetensorsParams, SHIPPED, SHIPPED_NAME,
+};
 
 use crate::error::{Error, Result};
 use crate::gpu::{vk, Caps, Gpu};

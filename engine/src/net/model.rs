@@ -50,6 +50,12 @@ struct Block {
     bias2b: f32,
 }
 
+/// The shipped weights (how they were trained: `engine/weights/README.md`), built into the
+/// binary so that every copy of relit has them.
+pub const SHIPPED: &[u8] = include_bytes!("../../weights/relit.safetensors");
+/// How errors and `relit info` name the shipped weights.
+pub const SHIPPED_NAME: &str = "engine/weights/relit.safetensors";
+
 /// Named parameters (OIHW or scalar), as f32.
 pub trait Params {
     fn get(&self, name: &str, shape: &[usize]) -> Result<Vec<f32>>;
@@ -64,6 +70,11 @@ pub struct SafetensorsParams {
 impl SafetensorsParams {
     pub fn open(path: &Path) -> Result<(SafetensorsParams, NetConfig)> {
         let bytes = crate::scene::files::read(path, crate::scene::files::FileKind::Weights)?;
+        SafetensorsParams::parse(path, bytes)
+    }
+
+    /// `bytes` as a weights file; `path` names them in errors.
+    pub fn parse(path: &Path, bytes: Vec<u8>) -> Result<(SafetensorsParams, NetConfig)> {
         let (_, meta) = safetensors::SafeTensors::read_metadata(&bytes)
             .map_err(|e| Error::input(path, format!("not a safetensors file: {e}")))?;
         let cfg = meta
@@ -160,6 +171,12 @@ pub struct Network {
 impl Network {
     pub fn load(gpu: &Arc<Gpu>, path: &Path, storage: Storage) -> Result<Network> {
         let (params, cfg) = SafetensorsParams::open(path)?;
+        Network::from_params(NetKernels::new(gpu, storage)?, cfg, &params)
+    }
+
+    /// The trained network that ships inside relit (`engine/weights/`).
+    pub fn shipped(gpu: &Arc<Gpu>, storage: Storage) -> Result<Network> {
+        let (params, cfg) = SafetensorsParams::parse(Path::new(SHIPPED_NAME), SHIPPED.to_vec())?;
         Network::from_params(NetKernels::new(gpu, storage)?, cfg, &params)
     }
 
