@@ -213,6 +213,21 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
         se.contains("path.json") && se.contains("safetensors"),
         "{se}"
     );
+    // Named weights are checked in the baseline modes too, not ignored.
+    let (code, _, se) = relit(&[
+        "render",
+        sp,
+        "--camera",
+        "0",
+        "--weights",
+        pp,
+        "--mode",
+        "ulr",
+        "--out",
+        "/tmp/x.png",
+    ]);
+    assert_ne!(code, 0);
+    assert!(se.contains("path.json"), "{se}");
     std::fs::write(
         &path,
         r#"{ "keyframes": [ { "time": 0, "position": [0,1,0], "fov_deg": 70 } ] }"#,

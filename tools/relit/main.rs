@@ -792,27 +792,24 @@ fn shipped_network() -> String {
         .ok()
         .and_then(|(_, m)| m.metadata().clone())
         .unwrap_or_default();
-    let field = |key: &str, f: &str| -> String {
+    let json = |key: &str| -> serde_json::Value {
         meta.get(key)
-            .and_then(|j| serde_json::from_str::<serde_json::Value>(j).ok())
-            .and_then(|v| v.get(f).map(|x| x.to_string()))
-            .unwrap_or_else(|| "?".into())
+            .and_then(|j| serde_json::from_str(j).ok())
+            .unwrap_or_default()
     };
-    let averaged = meta
-        .get("relit.trained")
-        .and_then(|j| serde_json::from_str::<serde_json::Value>(j).ok())
-        .and_then(|v| v.get("averaged_with").cloned())
-        .and_then(|v| v.as_array().cloned())
-        .map(|a| {
-            let steps: Vec<String> = a.iter().map(|e| e["step"].to_string()).collect();
-            format!(" averaged with step {}", steps.join(", "))
-        })
+    let (net, trained) = (json("relit.net"), json("relit.trained"));
+    let steps: Vec<String> = (trained["averaged_with"].as_array())
+        .map(|a| a.iter().map(|e| e["step"].to_string()).collect())
         .unwrap_or_default();
+    let averaged = match steps.is_empty() {
+        true => String::new(),
+        false => format!(" averaged with step {}", steps.join(", ")),
+    };
     format!(
         "width {}, run {} at step {}{averaged}, built into relit from {}",
-        field("relit.net", "width"),
-        field("relit.trained", "run").trim_matches('"'),
-        field("relit.trained", "step"),
+        net["width"],
+        trained["run"].as_str().unwrap_or("?"),
+        trained["step"],
         relit_engine::net::SHIPPED_NAME
     )
 }

@@ -172,10 +172,11 @@ pub fn open_renderer(
         Some(ModeArg::Ratio) => Mode::Ratio,
         Some(ModeArg::Network) | None => Mode::Network,
     };
+    // Weights a user names are always loaded, so that a bad file is an error in any mode.
     let net = match (&a.weights, mode == Mode::Network || keep_net) {
-        (_, false) => None,
-        (Some(w), true) => Some(Network::load(gpu, w, storage)?),
+        (Some(w), _) => Some(Network::load(gpu, w, storage)?),
         (None, true) => Some(Network::shipped(gpu, storage)?),
+        (None, false) => None,
     };
     Ok((Renderer::new(gpu, fs, net, storage)?, mode))
 }
