@@ -346,6 +346,18 @@ fn malformed_inputs_get_clear_errors() {
     expect_error(&d, "mesh.ply", "file ends inside face 1");
     cases += 1;
 
+    // 14b. ASCII PLY declaring 10^15 vertices, and an element without properties and as many:
+    // refused at the header (the fuzzer's hang), not read value by value.
+    let d = room("bad-ply-huge", j);
+    std::fs::write(
+        d.join("mesh.ply"),
+        "ply\nformat ascii 1.0\nelement vertex 1000000000000000\nproperty float x\n\
+         property float y\nproperty float z\nend_header\n0 0 0\n",
+    )
+    .unwrap();
+    expect_error(&d, "mesh.ply", "header declares 1000000000000000 vertex");
+    cases += 1;
+
     // 15. PLY face index out of range.
     let d = room("bad-ply-index", j);
     std::fs::write(

@@ -101,7 +101,7 @@ class RelightNet(nn.Module):
 def save(model, path, dtype=torch.float32, trained=None):
     """`trained`: how the weights were made (a dict stored as JSON under "relit.trained")."""
     from safetensors.torch import save_file
-    tensors = {k: v.detach().to(dtype).contiguous() for k, v in model.state_dict().items()}
+    tensors = {k: v.detach().to("cpu", dtype).contiguous() for k, v in model.state_dict().items()}
     meta = {"relit.net": json.dumps(model.config, sort_keys=True)}
     if trained is not None:
         meta["relit.trained"] = json.dumps(trained, sort_keys=True)

@@ -120,6 +120,34 @@ class TrainerTest(unittest.TestCase):
         self.assertNotEqual(r.returncode, 0)
         self.assertIn("processes", r.stderr)
 
+    def test_a_run_starts_from_another_runs_checkpoint_with_its_own_terms(self):
+        base, arm = self.run_dir("base"), self.run_dir("arm")
+        self.assertEqual(train(self.data, base, "--steps", "3").returncode, 0)
+        r = train(self.data, arm, "--steps", "5", "--multiview", "0", "--save-every", "2",
+                  "--init-from", os.path.join(base, "checkpoint.pt"))
+        self.assertEqual(r.returncode, 0, r.stderr)
+        kept = sorted(f for f in os.listdir(arm) if f.startswith("weights-"))
+        self.assertEqual(kept, ["weights-00004.safetensors"])
+        sys.path.insert(0, HERE)
+        from export import trained_step
+        self.assertEqual(trained_step(os.path.join(arm, kept[0])), 4)
+        rows = log(arm)
+        self.assertEqual(rows[0]["step"], 3)
+        self.assertEqual(rows[0]["from_terms"]["multiview"], 1.0)
+        self.assertEqual([r["step"] for r in rows[1:]], [4, 5])
+        self.assertTrue(all("multiview" not in r for r in rows[1:]), "the arm's terms apply")
+        # Started and stopped at the base's step, an arm holds the base's network.
+        same = self.run_dir("arm-at-base")
+        r = train(self.data, same, "--steps", "3", "--adv", "0", "--init-from",
+                  os.path.join(base, "checkpoint.pt"))
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(read(os.path.join(same, "weights.safetensors"), "rb"),
+                         read(os.path.join(base, "weights.safetensors"), "rb"))
+        r = train(self.data, arm, "--steps", "6", "--resume", "--init-from",
+                  os.path.join(base, "checkpoint.pt"))
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("one of them", r.stderr)
+
     def test_refuses_to_overwrite_a_run_and_to_resume_nothing(self):
         run = self.run_dir("twice")
         self.assertEqual(train(self.data, run, "--steps", "1").returncode, 0)

@@ -138,7 +138,9 @@ def plot(run):
     for r in rows:
         if "data" in r and r["step"] > 0:
             ax.axvline(r["step"], color="gray", linestyle="--", linewidth=0.8)
-            ax.annotate("data: " + os.path.basename(r["data"]), (r["step"], 0.98),
+            what = ("from " + os.path.basename(os.path.dirname(r["init_from"])) if "init_from" in r
+                    else "data: " + os.path.basename(r["data"]))
+            ax.annotate(what, (r["step"], 0.98),
                         xycoords=("data", "axes fraction"), fontsize=7, va="top")
     ax.set_xlabel("step")
     ax.set_ylabel("loss (§5.3 L1 terms)")
@@ -184,8 +186,14 @@ def parse_args():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--val-every", type=int, default=200)
     ap.add_argument("--checkpoint-minutes", type=float, default=5.0)
+    ap.add_argument("--save-every", type=int, default=0, metavar="N",
+                    help="also keep the weights every N steps (weights-STEP.safetensors, for "
+                         "export.py --average and evaluations)")
     ap.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
     ap.add_argument("--resume", action="store_true", help="continue RUN from its checkpoint")
+    ap.add_argument("--init-from", metavar="CHECKPOINT",
+                    help="start a new run from another run's checkpoint.pt: its network, optimizer "
+                         "state and step, with this run's terms (ablations from a common point)")
     ap.add_argument("--device", default="cpu",
                     help="torch device: cpu or cuda (under torchrun, each process takes its own GPU)")
     ap.add_argument("--vgg", type=float, default=0.1, help="λ_vgg of the perceptual terms (0: off)")
@@ -195,6 +203,35 @@ def parse_args():
     ap.add_argument("--vgg-weights", default=os.path.expanduser("~/.cache/relit/vgg16.safetensors"),
                     help="VGG16 features converted by perceptual.py (tools/setup.sh makes them)")
     return ap.parse_args()
+
+
+def save_weights(net, path, run=None, step=None):
+    """The network's weights for the engine, written atomically (a temp file, then rename)."""
+    trained = {"run": os.path.basename(os.path.abspath(run)), "step": step} if run else None
+    tmp = path + ".tmp"
+    M.save(net, tmp, trained=trained)
+    os.replace(tmp, path)
+
+
+def init_from(a, net, opt, disc, lead):
+    """Loads another run's network and optimizer state (RMSProp's running averages, so the first
+    steps are not oversized) and returns its step; this run's terms and seed apply from there.
+    A discriminator is taken over when both runs have one, else starts afresh."""
+    if not os.path.exists(a.init_from):
+        sys.exit(f"{a.init_from}: no checkpoint to start from (--init-from)")
+    c = torch.load(a.init_from, weights_only=False, map_location=a.device)
+    if c["config"] != net.config:
+        sys.exit(f"{a.init_from}: network {c['config']} differs from {net.config} "
+                 "(--width, --*-blocks)")
+    net.load_state_dict(c["model"])
+    opt.load_state_dict(c["optimizer"])
+    if disc is not None and c.get("disc") is not None:
+        disc.load_state_dict(c["disc"])
+    if lead:
+        with open(os.path.join(a.out, "log.jsonl"), "a") as f:
+            f.write(json.dumps({"step": c["step"], "init_from": os.path.abspath(a.init_from),
+                                "from_terms": c["terms"], "data": os.path.abspath(a.data)}) + "\n")
+    return c["step"]
 
 
 class Dist:
@@ -262,6 +299,8 @@ def step_loss(a, net, disc, vgg, train, nbr, warps, i, lighting, rng, row):
 
 def main():
     a = parse_args()
+    if a.resume and a.init_from:
+        sys.exit("--resume continues this run, --init-from starts one: pass one of them")
     if a.threads:
         torch.set_num_threads(a.threads)
     torch.use_deterministic_algorithms(True)
@@ -316,8 +355,11 @@ def main():
                     f.write(json.dumps({"step": step, "data": os.path.abspath(a.data)}) + "\n")
     elif os.path.exists(ckpt):
         sys.exit(f"{ckpt} exists: pass --resume to continue it, or choose another --out")
-    elif lead:
-        open(os.path.join(a.out, "log.jsonl"), "w").close()
+    else:
+        if lead:
+            open(os.path.join(a.out, "log.jsonl"), "w").close()
+        if a.init_from:
+            step = init_from(a, net, opt, disc, lead)
     dd.barrier()
 
     def checkpoint():
@@ -361,6 +403,8 @@ def main():
                   f"{rate:.2f} s/step, ETA {(a.steps - step) * rate / 60:.0f} min", flush=True)
         if lead:
             log.write(json.dumps(row) + "\n")
+        if lead and a.save_every and step % a.save_every == 0:
+            save_weights(net, os.path.join(a.out, f"weights-{step:05d}.safetensors"), a.out, step)
         # Every process decides alike when to checkpoint or stop (the gathers are collective).
         if any(dd.gather(bool(stop))):
             if lead:
@@ -377,9 +421,7 @@ def main():
     if not lead:
         return
     log.close()
-    tmp = os.path.join(a.out, "weights.tmp.safetensors")
-    M.save(net.cpu(), tmp)
-    os.replace(tmp, os.path.join(a.out, "weights.safetensors"))
+    save_weights(net, os.path.join(a.out, "weights.safetensors"))
     plot(a.out)
     print(f"{a.out}: step {step}, {len(train)} training and {len(val)} validation samples, "
           f"{dd.world} process(es)")

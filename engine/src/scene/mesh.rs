@@ -377,12 +377,18 @@ fn load_ply(path: &Path) -> Result<Mesh> {
         text = String::from_utf8_lossy(body);
         PlyReader::Ascii(text.split_ascii_whitespace())
     };
-    // Guard against absurd counts before allocating.
-    let min_bytes: usize = elements
+    // Guard against absurd counts before allocating or looping: every value takes at least
+    // one byte in binary and one character plus a separator in ASCII.
+    let min_values: usize = elements
         .iter()
         .map(|e| e.count.saturating_mul(e.props.len()))
-        .sum();
-    if binary && min_bytes > body.len() {
+        .fold(0, usize::saturating_add);
+    let min_bytes = if binary {
+        min_values
+    } else {
+        min_values.saturating_mul(2).saturating_sub(1)
+    };
+    if min_bytes > body.len() {
         return Err(bad(format!(
             "header declares {} but the file has only {} bytes of data",
             elements
@@ -402,7 +408,11 @@ fn load_ply(path: &Path) -> Result<Mesh> {
         .collect::<Vec<_>>()
         .join(", ");
     let mut mesh = Mesh::default();
-    for e in &elements {
+    // An element without properties has nothing to read, whatever its count.
+    for e in elements
+        .iter()
+        .filter(|e| !e.props.is_empty() || e.name == "vertex")
+    {
         let idx = |n: &str| e.props.iter().position(|p| p.name == n);
         let is_vertex = e.name == "vertex";
         let is_face = e.name == "face";
