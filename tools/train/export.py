@@ -1,7 +1,10 @@
 """Exports the weights of a run's latest checkpoint without stopping the run: the engine's
 weights file (`relit render --weights W`) and the run's curves.png.
 
-    python tools/train/export.py RUN [--out W] [--dtype f16|f32] [--average W1 ...]
+    python tools/train/export.py RUN|W [--out W] [--dtype f16|f32] [--average W1 ...]
+
+RUN is a run directory (its checkpoint is exported), W weights a run kept along the way
+(`train.py --save-every`).
 
 The file is written atomically (temporary file, rename). fp16 halves the size; the engine
 computes in fp32 either way, and its fp16-storage path rounds the weights to fp16 anyway.
@@ -25,10 +28,7 @@ from train import plot  # noqa: E402
 
 
 def trained_step(path):
-    from safetensors import safe_open
-    with safe_open(path, framework="pt") as f:
-        meta = f.metadata() or {}
-    return json.loads(meta.get("relit.trained", "{}")).get("step")
+    return trained_meta(path).get("step")
 
 
 def average_into(net, files):
@@ -44,31 +44,53 @@ def average_into(net, files):
     return [{"file": os.path.basename(p), "step": trained_step(p)} for p in files]
 
 
-def export(run, out, dtype, average=()):
+def trained_meta(path):
+    from safetensors import safe_open
+    with safe_open(path, framework="pt") as f:
+        return json.loads((f.metadata() or {}).get("relit.trained", "{}"))
+
+
+def load_base(run):
+    """The network to export and how it was trained: a run's checkpoint, or weights that a run
+    kept along the way (`train.py --save-every`)."""
+    if os.path.isfile(run) and run.endswith(".safetensors"):
+        trained = trained_meta(run)
+        if "run" not in trained or "step" not in trained:
+            sys.exit(f"{run}: no \"relit.trained\" run and step in its metadata "
+                     "(expected weights kept by train.py --save-every)")
+        return M.load(run), {"run": trained["run"], "step": trained["step"]}
     ckpt = os.path.join(run, "checkpoint.pt")
     if not os.path.isfile(ckpt):
         sys.exit(f"{ckpt}: no checkpoint (expected a run directory written by train.py)")
     c = torch.load(ckpt, weights_only=False, map_location="cpu")
     net = M.RelightNet(**c["config"])
     net.load_state_dict(c["model"])
-    trained = {"run": os.path.basename(os.path.abspath(run)), "step": c["step"]}
+    return net, {"run": os.path.basename(os.path.abspath(run)), "step": c["step"]}
+
+
+def export(run, out, dtype, average=()):
+    net, trained = load_base(run)
     if average:
         trained["averaged_with"] = average_into(net, average)
     tmp = out + ".tmp"
     M.save(net, tmp, dtype={"f16": torch.float16, "f32": torch.float32}[dtype], trained=trained)
     os.replace(tmp, out)
-    plot(run)
-    return c["step"]
+    if os.path.isdir(run):
+        plot(run)
+    return trained["step"]
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("run", help="a run directory (checkpoint.pt, log.jsonl)")
+    ap.add_argument("run", help="a run directory (checkpoint.pt, log.jsonl), or weights kept by "
+                                "train.py --save-every")
     ap.add_argument("--out", help="weights file (default: RUN/weights.safetensors)")
     ap.add_argument("--dtype", choices=["f16", "f32"], default="f32")
     ap.add_argument("--average", nargs="+", default=[], metavar="W",
                     help="weights files of the same network to average with the checkpoint's")
     a = ap.parse_args()
+    if not a.out and not os.path.isdir(a.run):
+        sys.exit("--out is needed when exporting a weights file")
     out = a.out or os.path.join(a.run, "weights.safetensors")
     step = export(a.run, out, a.dtype, a.average)
     print(f"{out}: step {step}, {os.path.getsize(out) / 1e6:.1f} MB ({a.dtype})"

@@ -131,6 +131,17 @@ class TrainerTest(unittest.TestCase):
         sys.path.insert(0, HERE)
         from export import trained_step
         self.assertEqual(trained_step(os.path.join(arm, kept[0])), 4)
+        # Kept weights export like a run, averaged with others, and name their run and step.
+        out = os.path.join(self.tmp.name, "kept.safetensors")
+        r = subprocess.run([sys.executable, os.path.join(HERE, "export.py"),
+                            os.path.join(arm, kept[0]), "--out", out, "--average",
+                            os.path.join(arm, "weights.safetensors")],
+                           capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        from export import trained_meta
+        meta = trained_meta(out)
+        self.assertEqual((meta["run"], meta["step"]), ("arm", 4))
+        self.assertEqual(len(meta["averaged_with"]), 1)
         rows = log(arm)
         self.assertEqual(rows[0]["step"], 3)
         self.assertEqual(rows[0]["from_terms"]["multiview"], 1.0)
