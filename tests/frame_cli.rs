@@ -198,36 +198,26 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
     let (code, _, se) = relit(&["render", sp, "--camera", "0", "--out", "/tmp/x.tiff"]);
     assert_ne!(code, 0);
     assert!(se.contains(".exr or .png"), "{se}");
-    let (code, _, se) = relit(&[
-        "render",
-        sp,
-        "--camera",
-        "0",
-        "--weights",
-        pp,
-        "--out",
-        "/tmp/x.png",
-    ]);
-    assert_ne!(code, 0);
-    assert!(
-        se.contains("path.json") && se.contains("safetensors"),
-        "{se}"
-    );
-    // Named weights are checked in the baseline modes too, not ignored.
-    let (code, _, se) = relit(&[
-        "render",
-        sp,
-        "--camera",
-        "0",
-        "--weights",
-        pp,
-        "--mode",
-        "ulr",
-        "--out",
-        "/tmp/x.png",
-    ]);
-    assert_ne!(code, 0);
-    assert!(se.contains("path.json"), "{se}");
+    // Named weights are checked in every mode, the baselines too, not ignored.
+    for mode in ["network", "ulr"] {
+        let (code, _, se) = relit(&[
+            "render",
+            sp,
+            "--camera",
+            "0",
+            "--weights",
+            pp,
+            "--mode",
+            mode,
+            "--out",
+            "/tmp/x.png",
+        ]);
+        assert_ne!(code, 0, "{mode}");
+        assert!(
+            se.contains("path.json") && se.contains("safetensors"),
+            "{mode}: {se}"
+        );
+    }
     std::fs::write(
         &path,
         r#"{ "keyframes": [ { "time": 0, "position": [0,1,0], "fov_deg": 70 } ] }"#,

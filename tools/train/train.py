@@ -213,10 +213,11 @@ def save_weights(net, path, run=None, step=None):
     os.replace(tmp, path)
 
 
-def init_from(a, net, opt, disc, lead):
+def init_from(a, net, opt, disc, opt_d, lead):
     """Loads another run's network and optimizer state (RMSProp's running averages, so the first
     steps are not oversized) and returns its step; this run's terms and seed apply from there.
-    A discriminator is taken over when both runs have one, else starts afresh."""
+    A discriminator and its optimizer are taken over when both runs have one, else start
+    afresh."""
     if not os.path.exists(a.init_from):
         sys.exit(f"{a.init_from}: no checkpoint to start from (--init-from)")
     c = torch.load(a.init_from, weights_only=False, map_location=a.device)
@@ -227,6 +228,7 @@ def init_from(a, net, opt, disc, lead):
     opt.load_state_dict(c["optimizer"])
     if disc is not None and c.get("disc") is not None:
         disc.load_state_dict(c["disc"])
+        opt_d.load_state_dict(c["disc_optimizer"])
     if lead:
         with open(os.path.join(a.out, "log.jsonl"), "a") as f:
             f.write(json.dumps({"step": c["step"], "init_from": os.path.abspath(a.init_from),
@@ -359,7 +361,7 @@ def main():
         if lead:
             open(os.path.join(a.out, "log.jsonl"), "w").close()
         if a.init_from:
-            step = init_from(a, net, opt, disc, lead)
+            step = init_from(a, net, opt, disc, opt_d, lead)
     dd.barrier()
 
     def checkpoint():
