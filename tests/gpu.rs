@@ -327,10 +327,11 @@ fn device_choice_errors_name_the_devices() {
 }
 
 /// The backend follows the device's capabilities, never its name: fp16 storage takes the
-/// cooperative-matrix kernels exactly when a shape fits, fp32 the CPU-shaped ones on CPU devices.
+/// cooperative-matrix kernels exactly when a shape fits, fp32 the CPU-shaped ones on CPU devices
+/// whose subgroups fit them.
 #[test]
 fn network_backend_follows_capabilities() {
-    use relit_engine::net::{backend_for, coop_tile, Backend, NetKernels, Storage};
+    use relit_engine::net::{backend_for, coop_tile, lanes_fit, Backend, NetKernels, Storage};
     let gpu = common::gpu();
     assert!(gpu.caps.missing().is_empty());
     for storage in [Storage::F16, Storage::F32] {
@@ -344,8 +345,16 @@ fn network_backend_follows_capabilities() {
     let cpu = gpu.caps.device_type == vk::PhysicalDeviceType::CPU;
     assert_eq!(
         backend_for(&gpu.caps, Storage::F32) == Backend::CpuLanes,
-        cpu
+        cpu && lanes_fit(&gpu.caps)
     );
+    // The CPU-shaped conv shares weights between 8 lanes: narrower subgroups, or none of
+    // subgroupBroadcast, take the portable kernels.
+    for (lanes, broadcast) in [(4, true), (8, false)] {
+        let mut caps = gpu.caps.clone();
+        caps.subgroup_size = lanes;
+        caps.subgroup_broadcast = broadcast;
+        assert_eq!(backend_for(&caps, Storage::F32), Backend::Portable);
+    }
     if common::require_coop() {
         assert!(coop_tile(&gpu.caps).is_some(), "{:?}", gpu.caps.coop_matrix);
     }

@@ -94,6 +94,10 @@ pub enum BenchCmd {
         /// ones on lavapipe, cooperative matrices on GPUs): the same network both ways.
         #[arg(long)]
         portable: bool,
+        /// The CPU-shaped kernels with this blocking, OCN,ROWS (output channels and rows per
+        /// invocation), instead of the measured default; fp32 storage.
+        #[arg(long, value_parser = parse_lanes)]
+        lanes: Option<(u32, u32)>,
         /// Timed inferences after one warm-up (the median is reported).
         #[arg(long, default_value_t = 3)]
         repeats: u32,
@@ -160,6 +164,7 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             res,
             storage,
             portable,
+            lanes,
             repeats,
             json,
             torch,
@@ -167,7 +172,7 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             net_bench(
                 *width,
                 *res,
-                (*storage, *portable),
+                (*storage, *portable, *lanes),
                 *repeats,
                 json.as_ref(),
                 opts,
@@ -755,22 +760,37 @@ fn bc6h_bench(cache: &std::path::Path, maps: usize, opts: &GpuOptions) -> Result
     Ok(())
 }
 
+/// `OCN,ROWS` for `bench net --lanes`.
+fn parse_lanes(s: &str) -> std::result::Result<(u32, u32), String> {
+    let bad = || format!("expected OCN,ROWS (two whole numbers, e.g. 8,6), got {s:?}");
+    let (a, b) = s.split_once(',').ok_or_else(bad)?;
+    Ok((
+        a.trim().parse().map_err(|_| bad())?,
+        b.trim().parse().map_err(|_| bad())?,
+    ))
+}
+
 fn net_bench(
     width: u32,
     (w, h): (u32, u32),
-    (storage, portable): (crate::StorageArg, bool),
+    (storage, portable, lanes): (crate::StorageArg, bool, Option<(u32, u32)>),
     repeats: u32,
     json: Option<&PathBuf>,
     opts: &GpuOptions,
 ) -> Result<()> {
-    use relit_engine::net::{Backend, NetConfig, NetKernels, Network, RandomParams, Tensor};
+    use relit_engine::net::{
+        Backend, NetConfig, NetKernels, Network, RandomParams, Storage, Tensor,
+    };
     let gpu = crate::open_gpu(opts)?;
     let storage = storage.resolve(&gpu.caps, Some((w, h)));
     let cfg = NetConfig::paper(width);
-    let kernels = if portable {
-        NetKernels::with_backend(&gpu, storage, Backend::Portable)?
-    } else {
-        NetKernels::new(&gpu, storage)?
+    let kernels = match (lanes, portable, storage) {
+        (Some(_), true, _) | (Some(_), _, Storage::F16) => {
+            anyhow::bail!("--lanes runs the CPU-shaped kernels: fp32 storage, not --portable")
+        }
+        (Some((ocn, rows)), false, Storage::F32) => NetKernels::with_lanes(&gpu, ocn, rows)?,
+        (None, true, _) => NetKernels::with_backend(&gpu, storage, Backend::Portable)?,
+        (None, false, _) => NetKernels::new(&gpu, storage)?,
     };
     let net = Network::from_params(kernels, cfg.clone(), &RandomParams(1))?;
     let bufs = net.buffers(h, w)?;

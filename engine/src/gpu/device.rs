@@ -97,6 +97,8 @@ pub struct Caps {
     pub vulkan_memory_model: bool,
     pub coop_matrix: Vec<CoopMatrixShape>,
     pub subgroup_size: u32,
+    /// Compute shaders may use subgroupBroadcast (the ballot subgroup operations).
+    pub subgroup_broadcast: bool,
     pub timestamp_period_ns: f32,
     pub timestamp_valid_bits: u32,
     pub max_storage_buffer_range: u32,
@@ -329,6 +331,12 @@ fn query_caps(
             vulkan_memory_model: f12.vulkan_memory_model == vk::TRUE,
             coop_matrix,
             subgroup_size: p11.subgroup_size,
+            subgroup_broadcast: p11
+                .subgroup_supported_stages
+                .contains(vk::ShaderStageFlags::COMPUTE)
+                && p11
+                    .subgroup_supported_operations
+                    .contains(vk::SubgroupFeatureFlags::BALLOT),
             timestamp_period_ns: limits.timestamp_period,
             timestamp_valid_bits: ts_bits,
             max_storage_buffer_range: limits.max_storage_buffer_range,

@@ -161,54 +161,28 @@ pub fn pack_weights(w: &[f32], oc: u32, ic: u32, k: u32) -> (Vec<f32>, u32, u32)
     (p, icp, blocks)
 }
 
-/// Bytes between uniform-buffer windows: 256 is a valid offset alignment on every device.
-const WINDOW_ALIGN: usize = 256;
-
 /// A layer's weights and bias in the order conv_lp_f32.comp reads them.
 struct LanesPack {
     weights: Buffer,
     bias: Buffer,
-    /// Bytes of one (output group, input chunk) window, and between windows.
-    window: u64,
-    stride: u64,
 }
 
-/// Packs OIHW weights for the CPU-shaped kernel: per output group of `ocn` channels and input
-/// chunk of `ci4` groups of 4 channels, one window [tap][channel of the chunk][ocn], zero
-/// where a channel does not exist, windows `WINDOW_ALIGN`-aligned, group-major. Returns the
-/// floats and the window size and stride in floats.
-pub fn pack_lanes(
-    w: &[f32],
-    oc: u32,
-    ic: u32,
-    k: u32,
-    ocn: u32,
-    ci4: u32,
-) -> (Vec<f32>, usize, usize) {
-    let (taps, cin, ocn) = ((k * k) as usize, 4 * ci4 as usize, ocn as usize);
-    let chunks = ic.div_ceil(4).div_ceil(ci4) as usize;
-    let groups = (oc as usize).div_ceil(ocn);
-    let window = taps * cin * ocn;
-    let stride = (window * 4).div_ceil(WINDOW_ALIGN) * WINDOW_ALIGN / 4;
-    let mut p = vec![0f32; groups * chunks * stride];
-    for g in 0..groups {
-        for c in 0..chunks {
-            let base = (g * chunks + c) * stride;
+/// Packs OIHW weights for the CPU-shaped kernel: `[output group of ocn][input group of 4]
+/// [tap][4 input channels][ocn]`, zero where a channel does not exist, so the 8 lanes of a
+/// vector read 8 output channels' weights of one (tap, input channel) side by side.
+pub fn pack_lanes(w: &[f32], oc: u32, ic: u32, k: u32, ocn: u32) -> Vec<f32> {
+    let (taps, ocn) = ((k * k) as usize, ocn as usize);
+    let (c4, groups) = (ic.div_ceil(4) as usize, (oc as usize).div_ceil(ocn));
+    let mut p = vec![0f32; groups * c4 * taps * 4 * ocn];
+    for o in 0..oc as usize {
+        for i in 0..ic as usize {
             for t in 0..taps {
-                for l in 0..cin {
-                    let i = c * cin + l;
-                    for o in 0..ocn {
-                        let oo = g * ocn + o;
-                        if i < ic as usize && oo < oc as usize {
-                            p[base + (t * cin + l) * ocn + o] =
-                                w[(oo * ic as usize + i) * taps + t];
-                        }
-                    }
-                }
+                let dst = (((o / ocn * c4 + i / 4) * taps + t) * 4 + i % 4) * ocn + o % ocn;
+                p[dst] = w[(o * ic as usize + i) * taps + t];
             }
         }
     }
-    (p, window, stride)
+    p
 }
 
 impl Conv {
@@ -319,6 +293,8 @@ struct LanesPush {
     in_addr: [u32; 2],
     out_addr: [u32; 2],
     res_addr: [u32; 2],
+    w_addr: [u32; 2],
+    bias_addr: [u32; 2],
     in_w: u32,
     in_h: u32,
     in_c4: u32,
@@ -326,23 +302,10 @@ struct LanesPush {
     out_h: u32,
     out_c: u32,
     pad: u32,
-    c4: u32,
-    oc4: u32,
-    phase: u32,
     flags: u32,
     in_bias: f32,
     out_bias: f32,
     scale: f32,
-}
-
-/// The conv kernel shaped for CPU drivers (conv_lp_f32.comp): lanes are 8 output pixels, each
-/// invocation holds `ocn` output channels, and each dispatch covers `ci4` input channel groups
-/// of one output group (see the shader's header). One pipeline per (kernel size, stride).
-pub struct LanesConv {
-    pipes: Vec<((u32, u32), Pipeline)>,
-    pub ocn: u32,
-    pub ci4: u32,
-    pub rows: u32,
 }
 
 /// A device address as the shader's uvec2 (low, high).
@@ -350,42 +313,53 @@ fn words(a: u64) -> [u32; 2] {
     [a as u32, (a >> 32) as u32]
 }
 
-/// The CPU-shaped kernel's blocking: (output channels per invocation, input groups per
-/// dispatch, rows per invocation). Measured with `relit bench net --width 66` on lavapipe
-/// (AVX-512 host, 2 cores): (4, 2, 1) 6.9–7.5 s per inference, (8, 2, 2) 7.0, (4, 4, 2) 7.4,
-/// (4, 2, 4) 8.8, (16, 2, 1) 10.2, (16, 1, 1) 14.3; larger blocks spill. The smallest block
-/// also suits AVX2's 16 registers.
-pub const LANES_BLOCKING: (u32, u32, u32) = (4, 2, 1);
+/// The CPU-shaped kernel's blocking: (output channels, rows) per invocation. Measured with
+/// `relit bench net --width 66 --lanes OCN,ROWS` on lavapipe 25.0.7 (AVX-512 host, 2 cores,
+/// 2026-11-24, GFLOP/s): (8, 4) 40.4, (8, 5) 42.2, **(8, 6) 46.2**, (8, 7) 45.6, (8, 8) 36.7,
+/// (16, 2) 36.1, (16, 3) 40.3, (16, 4) 42.5, (16, 6) 36.1, (24, 4) 41.2. The accumulators
+/// spill at every one of these; what more rows buy is fewer gathers per multiply-add.
+pub const LANES_BLOCKING: (u32, u32) = (8, 6);
 
 /// (kernel size, stride) of the network's convolutions (§5.1): 3×3 blocks and output, 4×4/2
 /// downsampling, 1×1 heads.
 const LANES_SHAPES: [(u32, u32); 3] = [(3, 1), (4, 2), (1, 1)];
 
+/// The conv kernel shaped for CPU drivers (conv_lp_f32.comp): lanes are 8 output pixels, each
+/// invocation holds `ocn` output channels × `rows` rows, weights are broadcast between lanes,
+/// one dispatch per layer (see the shader's header). One pipeline per (kernel size, stride).
+pub struct LanesConv {
+    pipes: Vec<((u32, u32), Pipeline)>,
+    pub ocn: u32,
+    pub rows: u32,
+}
+
 impl LanesConv {
-    /// `ocn`: output channels per invocation (accumulator registers), 4, 8 or 16.
-    pub fn new(gpu: &Arc<Gpu>, ocn: u32, ci4: u32, rows: u32) -> Result<LanesConv> {
-        if ![4, 8, 16].contains(&ocn) || !(1..=8).contains(&ci4) || !(1..=8).contains(&rows) {
+    /// `ocn`: output channels per invocation, 8 to 32 by 8; `rows`: 1 to 8.
+    pub fn new(gpu: &Arc<Gpu>, ocn: u32, rows: u32) -> Result<LanesConv> {
+        if !super::lanes_fit(&gpu.caps) {
             return Err(Error::Other(format!(
-                "conv_lp: {ocn} output channels per invocation, {ci4} input groups per dispatch, {rows} rows (expected 4, 8 or 16; 1 to 8; 1 to 8)"
+                "conv_lp: {} has {}-lane subgroups{} (the kernel needs 8 or more and subgroupBroadcast)",
+                gpu.caps.name,
+                gpu.caps.subgroup_size,
+                if gpu.caps.subgroup_broadcast { "" } else { " without subgroupBroadcast" }
+            )));
+        }
+        if !(8..=32).contains(&ocn) || !ocn.is_multiple_of(8) || !(1..=8).contains(&rows) {
+            return Err(Error::Other(format!(
+                "conv_lp: {ocn} output channels per invocation, {rows} rows (expected 8, 16, 24 or 32; 1 to 8)"
             )));
         }
         let pipes = LANES_SHAPES
             .iter()
             .map(|&(k, s)| {
-                Pipeline::compute_specialized(gpu, "net/conv_lp_f32.comp", &[k, s, ocn, ci4, rows])
+                Pipeline::compute_specialized(gpu, "net/conv_lp_f32.comp", &[k, s, ocn, rows])
                     .map(|p| ((k, s), p))
             })
             .collect::<Result<Vec<_>>>()?;
-        Ok(LanesConv {
-            pipes,
-            ocn,
-            ci4,
-            rows,
-        })
+        Ok(LanesConv { pipes, ocn, rows })
     }
 
-    /// Records the dispatches of `out = epilogue(conv(input))`, with barriers between the
-    /// input chunks (the partial sums live in `out`).
+    /// Records the dispatch of `out = epilogue(conv(input))` and a barrier.
     fn record(
         &self,
         gpu: &Arc<Gpu>,
@@ -410,42 +384,31 @@ impl LanesConv {
                 "conv_lp: the layer was not packed for these kernels (NetKernels::layer)".into(),
             ));
         };
-        let grid = (out.w.div_ceil(8), out.h.div_ceil(4 * self.rows), 1);
-        let groups = layer.oc.div_ceil(self.ocn);
-        let chunks = input.c4().div_ceil(self.ci4);
-        let bias_window = self.ocn as u64 * 4;
-        for chunk in 0..chunks {
-            let c4 = chunk * self.ci4;
-            for g in 0..groups {
-                let window = (g * chunks + chunk) as u64 * pack.stride;
-                let bias_at = g as u64 * WINDOW_ALIGN as u64;
-                let binds = [
-                    (0, Bind::BufferRange(&pack.weights, window, pack.window)),
-                    (1, Bind::BufferRange(&pack.bias, bias_at, bias_window)),
-                ];
-                let push = LanesPush {
-                    in_addr: words(input.buf.address),
-                    out_addr: words(out.buf.address),
-                    res_addr: words(ep.residual.map_or(0, |r| r.buf.address)),
-                    in_w: input.w,
-                    in_h: input.h,
-                    in_c4: input.c4(),
-                    out_w: out.w,
-                    out_h: out.h,
-                    out_c: layer.oc,
-                    pad: layer.pad,
-                    c4,
-                    oc4: g * self.ocn / 4,
-                    phase: u32::from(chunk == 0) | if chunk + 1 == chunks { 2 } else { 0 },
-                    flags: u32::from(ep.relu) | if ep.residual.is_some() { 2 } else { 0 },
-                    in_bias: ep.in_bias,
-                    out_bias: ep.out_bias,
-                    scale: ep.scale,
-                };
-                pipe.dispatch_groups(cmd, &binds, bytes_of(&push), grid)?;
-            }
-            full_barrier(gpu, cmd);
-        }
+        let push = LanesPush {
+            in_addr: words(input.buf.address),
+            out_addr: words(out.buf.address),
+            res_addr: words(ep.residual.map_or(0, |r| r.buf.address)),
+            w_addr: words(pack.weights.address),
+            bias_addr: words(pack.bias.address),
+            in_w: input.w,
+            in_h: input.h,
+            in_c4: input.c4(),
+            out_w: out.w,
+            out_h: out.h,
+            out_c: layer.oc,
+            pad: layer.pad,
+            flags: u32::from(ep.relu) | if ep.residual.is_some() { 2 } else { 0 },
+            in_bias: ep.in_bias,
+            out_bias: ep.out_bias,
+            scale: ep.scale,
+        };
+        let grid = (
+            out.w.div_ceil(8),
+            out.h.div_ceil(4 * self.rows),
+            layer.oc.div_ceil(self.ocn),
+        );
+        pipe.dispatch_groups(cmd, &[], bytes_of(&push), grid)?;
+        full_barrier(gpu, cmd);
         Ok(())
     }
 }
@@ -503,28 +466,23 @@ impl NetKernels {
             pad,
         )?;
         if let Some(l) = &self.lanes {
-            let (w, window, wstride) = pack_lanes(weights, oc, ic, k, l.ocn, l.ci4);
-            // One window of `ocn` biases per output group.
-            let bstride = WINDOW_ALIGN / 4;
-            let mut b = vec![0f32; oc.div_ceil(l.ocn) as usize * bstride];
-            for (o, v) in bias.unwrap_or(&[]).iter().enumerate() {
-                b[o / l.ocn as usize * bstride + o % l.ocn as usize] = *v;
-            }
-            let u = vk::BufferUsageFlags::UNIFORM_BUFFER;
+            let w = pack_lanes(weights, oc, ic, k, l.ocn);
+            let mut b = vec![0f32; oc.div_ceil(l.ocn) as usize * l.ocn as usize];
+            b[..bias.map_or(0, |b| b.len())].copy_from_slice(bias.unwrap_or(&[]));
+            let u =
+                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
             c.lanes = Some(LanesPack {
                 weights: Buffer::from_slice(&self.gpu, "conv weights (lanes)", u, &w)?,
                 bias: Buffer::from_slice(&self.gpu, "conv bias (lanes)", u, &b)?,
-                window: window as u64 * 4,
-                stride: wstride as u64 * 4,
             });
         }
         Ok(c)
     }
 
     /// The CPU-shaped kernels with an explicit blocking (`LanesConv::new`), fp32 storage.
-    pub fn with_lanes(gpu: &Arc<Gpu>, ocn: u32, ci4: u32, rows: u32) -> Result<NetKernels> {
+    pub fn with_lanes(gpu: &Arc<Gpu>, ocn: u32, rows: u32) -> Result<NetKernels> {
         let mut k = NetKernels::with_backend(gpu, Storage::F32, Backend::Portable)?;
-        k.lanes = Some(LanesConv::new(gpu, ocn, ci4, rows)?);
+        k.lanes = Some(LanesConv::new(gpu, ocn, rows)?);
         k.backend = Backend::CpuLanes;
         Ok(k)
     }
@@ -561,12 +519,7 @@ impl NetKernels {
             _ => None,
         };
         let lanes = match backend {
-            Backend::CpuLanes => Some(LanesConv::new(
-                gpu,
-                LANES_BLOCKING.0,
-                LANES_BLOCKING.1,
-                LANES_BLOCKING.2,
-            )?),
+            Backend::CpuLanes => Some(LanesConv::new(gpu, LANES_BLOCKING.0, LANES_BLOCKING.1)?),
             _ => None,
         };
         Ok(NetKernels {

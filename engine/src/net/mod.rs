@@ -7,8 +7,8 @@ mod gemm;
 mod model;
 
 pub use conv::{
-    conv_reference, pack_weights, upsample_add_reference, Conv, Epilogue, LanesConv, NetKernels,
-    Storage, Tensor, OCB,
+    conv_reference, pack_lanes, pack_weights, upsample_add_reference, Conv, Epilogue, LanesConv,
+    NetKernels, Storage, Tensor, OCB,
 };
 pub use gemm::Gemm;
 pub use model::{
@@ -26,8 +26,9 @@ pub const INPUT_CHANNELS: u32 = 66;
 pub enum Backend {
     CoopMatrix,
     Portable,
-    /// Kernels shaped for CPU drivers (llvmpipe): lanes are output pixels, weights at uniform
-    /// addresses (conv_lp_f32.comp). Chosen on CPU devices with fp32 storage.
+    /// Kernels shaped for CPU drivers (llvmpipe): lanes are output pixels, weights broadcast
+    /// between lanes (conv_lp_f32.comp). Chosen on CPU devices with fp32 storage whose
+    /// subgroups have at least 8 lanes and offer subgroupBroadcast (`lanes_fit`).
     CpuLanes,
 }
 
@@ -88,9 +89,16 @@ pub fn backend_for(caps: &Caps, storage: Storage) -> Backend {
     match storage {
         Storage::F16 if coop_tile(caps).is_some() => Backend::CoopMatrix,
         Storage::F16 => Backend::Portable,
-        Storage::F32 if caps.device_type == vk::PhysicalDeviceType::CPU => Backend::CpuLanes,
+        Storage::F32 if caps.device_type == vk::PhysicalDeviceType::CPU && lanes_fit(caps) => {
+            Backend::CpuLanes
+        }
         Storage::F32 => Backend::Portable,
     }
+}
+
+/// Whether the CPU-shaped conv can run: its 8 lanes share weights with subgroupBroadcast.
+pub fn lanes_fit(caps: &Caps) -> bool {
+    caps.subgroup_size >= 8 && caps.subgroup_broadcast
 }
 
 /// One line for `relit info`: what runs with `storage`.
@@ -101,7 +109,7 @@ pub fn describe_backend(caps: &Caps, storage: Storage) -> String {
             t.m, t.n, t.k, t.subgroup
         ),
         (Backend::CpuLanes, _) => {
-            "CPU-shaped (lanes are pixels, weights at uniform addresses)".into()
+            "CPU-shaped (lanes are pixels, weights broadcast between lanes)".into()
         }
         _ => "portable".into(),
     }
