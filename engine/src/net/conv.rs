@@ -314,11 +314,14 @@ fn words(a: u64) -> [u32; 2] {
 }
 
 /// The CPU-shaped kernel's blocking: (output channels, rows) per invocation. Measured with
-/// `relit bench net --width 66 --lanes OCN,ROWS` on lavapipe 25.0.7 (AVX-512 host, 2 cores,
-/// 2026-11-24, GFLOP/s): (8, 4) 40.4, (8, 5) 42.2, **(8, 6) 46.2**, (8, 7) 45.6, (8, 8) 36.7,
-/// (16, 2) 36.1, (16, 3) 40.3, (16, 4) 42.5, (16, 6) 36.1, (24, 4) 41.2. The accumulators
-/// spill at every one of these; what more rows buy is fewer gathers per multiply-add.
-pub const LANES_BLOCKING: (u32, u32) = (8, 6);
+/// `relit bench net --width 66 --lanes OCN,ROWS --repeats 3` on lavapipe 25.0.7 (AVX-512
+/// host, 2 cores, load 1.8, 2026-11-24; GFLOP/s, two sweeps): (8, 2) 45.0 / 44.1, (8, 3)
+/// 51.6 / 52.9, **(8, 4) 60.3 / 56.1**, (8, 5) 56.5 / 54.7, (8, 6) 48.0 / 46.6, (16, 2)
+/// 51.0 / 50.4, (16, 3) 40.0 / 39.9, (16, 4) 48.7 / 48.7; at width 32, (8, 4) 56.8 and
+/// (16, 2) 58.5. The accumulators spill at all of these; more rows buy fewer gathers per
+/// multiply-add. LLVM's register allocation makes these figures move with small changes to
+/// the shader: measure again after editing it.
+pub const LANES_BLOCKING: (u32, u32) = (8, 4);
 
 /// (kernel size, stride) of the network's convolutions (§5.1): 3×3 blocks and output, 4×4/2
 /// downsampling, 1×1 heads.
