@@ -118,21 +118,28 @@ fn conv_kernels_match_cpu() {
 fn upsample_add_matches_cpu() {
     let gpu = common::gpu();
     let mut rng = Rng::new(9);
-    let kern = NetKernels::with_backend(&gpu, Storage::F32, Backend::Portable).unwrap();
+    // The portable kernel (storage bindings) and the CPU-shaped one (pointers).
+    let mut kernels =
+        vec![NetKernels::with_backend(&gpu, Storage::F32, Backend::Portable).unwrap()];
+    if lanes_fit(&gpu.caps) {
+        kernels.push(NetKernels::with_lanes(&gpu, 8, 4).unwrap());
+    }
     let (c, sh, sw, dh, dw) = (7u32, 3u32, 5u32, 24u32, 40u32);
-    let src = random(&mut rng, (c * sh * sw) as usize, -1.0, 1.0);
-    let dst = random(&mut rng, (c * dh * dw) as usize, -1.0, 1.0);
-    let st = Tensor::new(&gpu, "s", c, sh, sw, Storage::F32).unwrap();
-    let dt = Tensor::new(&gpu, "d", c, dh, dw, Storage::F32).unwrap();
-    st.upload_chw(&src).unwrap();
-    dt.upload_chw(&dst).unwrap();
-    let mut r = Ok(());
-    gpu.submit(|cmd| r = kern.upsample_add(cmd, &st, &dt))
-        .unwrap();
-    r.unwrap();
-    let want = upsample_add_reference(&src, (c, sh, sw), &dst, (dh, dw));
-    let (e, _) = max_err(&dt.download_chw().unwrap(), &want);
-    assert!(e < 1e-5, "max error {e}");
+    for kern in &kernels {
+        let src = random(&mut rng, (c * sh * sw) as usize, -1.0, 1.0);
+        let dst = random(&mut rng, (c * dh * dw) as usize, -1.0, 1.0);
+        let st = Tensor::new(&gpu, "s", c, sh, sw, Storage::F32).unwrap();
+        let dt = Tensor::new(&gpu, "d", c, dh, dw, Storage::F32).unwrap();
+        st.upload_chw(&src).unwrap();
+        dt.upload_chw(&dst).unwrap();
+        let mut r = Ok(());
+        gpu.submit(|cmd| r = kern.upsample_add(cmd, &st, &dt))
+            .unwrap();
+        r.unwrap();
+        let want = upsample_add_reference(&src, (c, sh, sw), &dst, (dh, dw));
+        let (e, _) = max_err(&dt.download_chw().unwrap(), &want);
+        assert!(e < 1e-5, "{:?}: max error {e}", kern.backend);
+    }
     common::assert_no_validation_errors(&gpu);
 }
 

@@ -486,6 +486,7 @@ impl NetKernels {
     pub fn with_lanes(gpu: &Arc<Gpu>, ocn: u32, rows: u32) -> Result<NetKernels> {
         let mut k = NetKernels::with_backend(gpu, Storage::F32, Backend::Portable)?;
         k.lanes = Some(LanesConv::new(gpu, ocn, rows)?);
+        k.up = Pipeline::compute(gpu, "net/upsample_add_lp_f32.comp")?;
         k.backend = Backend::CpuLanes;
         Ok(k)
     }
@@ -510,9 +511,10 @@ impl NetKernels {
                 ))
             }
         };
-        let up = match storage {
-            Storage::F16 => "net/upsample_add.comp",
-            Storage::F32 => "net/upsample_add_f32.comp",
+        let up = match (storage, backend) {
+            (Storage::F16, _) => "net/upsample_add.comp",
+            (Storage::F32, Backend::CpuLanes) => "net/upsample_add_lp_f32.comp",
+            (Storage::F32, _) => "net/upsample_add_f32.comp",
         };
         let conv_rem = match (storage, backend) {
             (Storage::F16, Backend::Portable) => Some(Pipeline::compute(gpu, "net/conv_r.comp")?),
@@ -634,12 +636,18 @@ impl NetKernels {
             dst_h: dst.h,
             c4: dst.c4(),
         };
-        self.up.dispatch(
-            cmd,
-            &[(0, Bind::Buffer(&src.buf)), (1, Bind::Buffer(&dst.buf))],
-            bytes_of(&push),
-            (dst.w * dst.h * dst.c4(), 1, 1),
-        )?;
+        let threads = (dst.w * dst.h * dst.c4(), 1, 1);
+        if self.lanes.is_some() {
+            // upsample_add_lp_f32.comp: the tensors by pointer, then the same sizes.
+            let mut bytes = Vec::with_capacity(16 + std::mem::size_of::<UpPush>());
+            bytes.extend_from_slice(bytes_of(&words(src.buf.address)));
+            bytes.extend_from_slice(bytes_of(&words(dst.buf.address)));
+            bytes.extend_from_slice(bytes_of(&push));
+            self.up.dispatch(cmd, &[], &bytes, threads)?;
+        } else {
+            let binds = [(0, Bind::Buffer(&src.buf)), (1, Bind::Buffer(&dst.buf))];
+            self.up.dispatch(cmd, &binds, bytes_of(&push), threads)?;
+        }
         full_barrier(&self.gpu, cmd);
         Ok(())
     }
