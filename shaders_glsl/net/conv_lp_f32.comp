@@ -66,7 +66,9 @@ void main() {
     uint lane = gl_SubgroupInvocationID & 7u;
     uint wi = og * pc.in_c4 * TAPS * 4u * OCN + lane;
     // The input rows the ROWS output rows read: rows overlap between taps, so each is gathered
-    // once per column tap.
+    // once per column tap. (Also sharing them between column taps, by shifting the kx = 0 row
+    // 1 and 2 lanes with subgroupShuffle, was slower: llvmpipe's shuffle costs more than the
+    // gather it saves.)
     const uint IN_ROWS = (ROWS - 1u) * STRIDE + K;
     int iy0 = int(oy0 * STRIDE) - int(pc.pad);
     for (uint c = 0u; c < pc.in_c4; ++c) {

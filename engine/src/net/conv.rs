@@ -426,6 +426,15 @@ struct UpPush {
     c4: u32,
 }
 
+/// Push constants of upsample_add_lp_f32.comp: the tensors by pointer, then UpPush's sizes.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct UpLanesPush {
+    src_addr: [u32; 2],
+    dst_addr: [u32; 2],
+    sizes: UpPush,
+}
+
 /// The network's pipelines for one storage type and backend.
 pub struct NetKernels {
     pub backend: Backend,
@@ -638,12 +647,12 @@ impl NetKernels {
         };
         let threads = (dst.w * dst.h * dst.c4(), 1, 1);
         if self.lanes.is_some() {
-            // upsample_add_lp_f32.comp: the tensors by pointer, then the same sizes.
-            let mut bytes = Vec::with_capacity(16 + std::mem::size_of::<UpPush>());
-            bytes.extend_from_slice(bytes_of(&words(src.buf.address)));
-            bytes.extend_from_slice(bytes_of(&words(dst.buf.address)));
-            bytes.extend_from_slice(bytes_of(&push));
-            self.up.dispatch(cmd, &[], &bytes, threads)?;
+            let push = UpLanesPush {
+                src_addr: words(src.buf.address),
+                dst_addr: words(dst.buf.address),
+                sizes: push,
+            };
+            self.up.dispatch(cmd, &[], bytes_of(&push), threads)?;
         } else {
             let binds = [(0, Bind::Buffer(&src.buf)), (1, Bind::Buffer(&dst.buf))];
             self.up.dispatch(cmd, &binds, bytes_of(&push), threads)?;
