@@ -493,10 +493,8 @@ impl NetKernels {
 
     /// The CPU-shaped kernels with an explicit blocking (`LanesConv::new`), fp32 storage.
     pub fn with_lanes(gpu: &Arc<Gpu>, ocn: u32, rows: u32) -> Result<NetKernels> {
-        let mut k = NetKernels::with_backend(gpu, Storage::F32, Backend::Portable)?;
+        let mut k = NetKernels::with_backend(gpu, Storage::F32, Backend::CpuLanes)?;
         k.lanes = Some(LanesConv::new(gpu, ocn, rows)?);
-        k.up = Pipeline::compute(gpu, "net/upsample_add_lp_f32.comp")?;
-        k.backend = Backend::CpuLanes;
         Ok(k)
     }
 
