@@ -707,6 +707,7 @@ fn bake_scene(name: &str) -> std::path::PathBuf {
         extra_lights: 2,
         test_views: 1,
         light_views: 0,
+        lamp_colours: Default::default(),
     };
     let s = relit_scenegen::generate(&dir, 8, &opts).unwrap();
     let (lights, _) = synth::room_lights();
@@ -961,6 +962,7 @@ fn bake_accuracy_against_mitsuba_ground_truth() {
         height: 36,
         extra_lights: 1,
         test_views: 1,
+        lamp_colours: Default::default(),
         light_views: 3,
     };
     relit_scenegen::generate(&dir, 12, &opts).unwrap();

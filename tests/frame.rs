@@ -9,7 +9,7 @@ use relit_engine::frame::{
     self, features, irradiance, output, reproject, target_mirror, FrameScene, HostMaps, Lighting,
     MapFormat, Mode, RefInputs, Renderer,
 };
-use relit_engine::net::{NetConfig, NetKernels, Network, RandomParams, Storage};
+use relit_engine::net::{NetBase, NetConfig, NetKernels, Network, Params, RandomParams, Storage};
 use relit_engine::scene::synth::{self, SynthOptions};
 use relit_engine::scene::{Camera, Light, LightShape, Mesh};
 
@@ -375,17 +375,24 @@ fn leave_one_out_excludes_the_view_from_every_pass() {
 }
 
 /// Network mode end to end: the frame's output equals the output transform applied to the
-/// network run separately on the frame's own input tensor.
+/// network run separately on the frame's own input tensor, for both bases (the ratio base is
+/// formed from that input by `output::ratio_base`, as `model.py` forms it).
 #[test]
 fn network_mode_output_matches_network_on_the_frame_input() {
     let gpu = common::gpu();
     let t = tiny();
-    for storage in [Storage::F32, Storage::F16] {
+    for (storage, base) in [
+        (Storage::F32, NetBase::None),
+        (Storage::F16, NetBase::None),
+        (Storage::F32, NetBase::Ratio),
+        (Storage::F16, NetBase::Ratio),
+    ] {
         let scene =
             FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, &[], MapFormat::Rgba16f)
                 .unwrap();
         let mut cfg = NetConfig::paper(8);
         cfg.levels = 3;
+        cfg.base = base;
         let mk = || {
             Network::from_params(
                 NetKernels::new(&gpu, storage).unwrap(),
@@ -405,33 +412,93 @@ fn network_mode_output_matches_network_on_the_frame_input() {
         let (w, h) = (t.novel.width, t.novel.height);
         let npix = (w * h) as usize;
         let input = b.input.download_chw().unwrap();
-        let has: Vec<bool> = b
-            .gbuf
-            .download()
-            .unwrap()
-            .pos_depth
-            .iter()
-            .map(|p| p[3] > 0.0)
-            .collect();
+        let has = surface_mask(b);
         let out = mk().run(&input, h, w).unwrap();
-        let want = output::reference_network(&out, npix, &has);
-        let hdr = r.hdr().unwrap();
-        for p in 0..npix {
-            for k in 0..3 {
-                let tol = 1e-3 * want[p][k].abs().max(1.0);
-                assert!(
-                    (hdr[p][k] - want[p][k]).abs() <= tol,
-                    "{storage:?} pixel {p}: {} vs {}",
-                    hdr[p][k],
-                    want[p][k]
-                );
-            }
-        }
+        let ratio_in = (base == NetBase::Ratio).then_some(&input[..]);
+        let want = output::reference_network(&out, ratio_in, npix, &has);
+        assert_close(
+            &r.hdr().unwrap(),
+            &want,
+            1e-3,
+            &format!("{storage:?} {base:?}"),
+        );
         assert!(r
             .render(&t.novel, &lighting, Mode::Network, 1.0, None)
             .is_ok());
     }
     common::assert_no_validation_errors(&gpu);
+}
+
+/// A network with base "ratio" whose output conv is zero (as `model.py` initializes it, before
+/// any training) renders the ratio image: relative 1e-4 with fp32 storage (the input channels
+/// are tonemapped and untonemapped once), 2e-2 with fp16 (11-bit channels).
+#[test]
+fn untrained_ratio_network_renders_the_ratio_image() {
+    struct ZeroOut(RandomParams);
+    impl Params for ZeroOut {
+        fn get(&self, name: &str, shape: &[usize]) -> relit_engine::Result<Vec<f32>> {
+            let v = self.0.get(name, shape)?;
+            Ok(if name.starts_with("out_conv.") {
+                vec![0.0; v.len()]
+            } else {
+                v
+            })
+        }
+    }
+    let gpu = common::gpu();
+    let t = tiny();
+    for (storage, tol) in [(Storage::F32, 1e-4), (Storage::F16, 2e-2)] {
+        let scene =
+            FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, &[], MapFormat::Rgba16f)
+                .unwrap();
+        let mut cfg = NetConfig::paper(8);
+        cfg.levels = 3;
+        cfg.base = NetBase::Ratio;
+        let net = Network::from_params(
+            NetKernels::new(&gpu, storage).unwrap(),
+            cfg,
+            &ZeroOut(RandomParams(5)),
+        )
+        .unwrap();
+        let mut r = Renderer::new(&gpu, scene, Some(net), storage).unwrap();
+        let lighting = Lighting {
+            intensities: vec![],
+            alpha_dim: 0.5,
+        };
+        r.render(&t.novel, &lighting, Mode::Ratio, 1.0, None)
+            .unwrap();
+        let ratio: Vec<[f32; 3]> = r
+            .hdr()
+            .unwrap()
+            .iter()
+            .map(|p| [p[0], p[1], p[2]])
+            .collect();
+        assert!(ratio.iter().any(|c| c[0] > 0.0), "the ratio image is black");
+        r.render(&t.novel, &lighting, Mode::Network, 1.0, None)
+            .unwrap();
+        assert_close(&r.hdr().unwrap(), &ratio, tol, &format!("{storage:?}"));
+    }
+    common::assert_no_validation_errors(&gpu);
+}
+
+fn surface_mask(b: &relit_engine::frame::FrameBuffers) -> Vec<bool> {
+    let g = b.gbuf.download().unwrap();
+    g.pos_depth.iter().map(|p| p[3] > 0.0).collect()
+}
+
+/// Every pixel's RGB within `rel` of `want` (relative to max(|want|, 1)).
+fn assert_close(got: &[[f32; 4]], want: &[[f32; 3]], rel: f32, what: &str) {
+    for (p, (g, w)) in got.iter().zip(want).enumerate() {
+        for k in 0..3 {
+            let tol = rel * w[k].abs().max(1.0);
+            assert!(
+                (g[k] - w[k]).abs() <= tol,
+                "{what} pixel {p}: {} vs {}",
+                g[k],
+                w[k]
+            );
+        }
+    }
 }
 
 #[test]

@@ -58,9 +58,10 @@ fn render_fly_dump_on_a_tiny_baked_scene() {
         "--maps",
         "bc6h",
     ]);
+    let default = format!("({:?})", relit_engine::frame::DEFAULT_MODE);
     assert!(
-        notice.contains("(Network)") && !notice.contains("notice"),
-        "the shipped network renders by default: {notice}"
+        notice.contains(&default) && !notice.contains("notice"),
+        "the default mode renders by default: {notice}"
     );
     let img = png(&out_png);
     assert_eq!(img.dimensions(), (32, 24));
@@ -539,4 +540,51 @@ fn fly_moves_a_light_along_the_path() {
         moved_vs_baked < 0.35 * moved_vs_start,
         "the moved light must look like the light baked there"
     );
+}
+
+/// `render --batch`: several cameras and modes from one load give the files single renders
+/// give; a bad batch file is an error that names the file and the render.
+#[test]
+fn render_batch_equals_single_renders_and_names_bad_entries() {
+    let s = baked_tiny("batch");
+    let sp = s.to_str().unwrap();
+    let d = s.parent().unwrap();
+    let jobs = d.join("jobs.json");
+    let out = |n: &str| d.join(n).to_str().unwrap().to_string();
+    let doc = serde_json::json!([
+        { "camera": "1", "mode": "ratio", "out": out("b_ratio.exr") },
+        { "camera": "2", "mode": "ulr", "out": out("b_ulr.exr") },
+        { "camera": "1", "mode": "network", "out": out("b_net.exr") },
+    ]);
+    std::fs::write(&jobs, serde_json::to_vec(&doc).unwrap()).unwrap();
+    ok(&["render", sp, "--batch", jobs.to_str().unwrap()]);
+    for (cam, mode, name) in [
+        ("1", "ratio", "b_ratio"),
+        ("2", "ulr", "b_ulr"),
+        ("1", "network", "b_net"),
+    ] {
+        let single = out(&format!("s_{name}.exr"));
+        ok(&[
+            "render", sp, "--camera", cam, "--mode", mode, "--out", &single,
+        ]);
+        assert_eq!(
+            std::fs::read(out(&format!("{name}.exr"))).unwrap(),
+            std::fs::read(&single).unwrap(),
+            "{name}: the batch render differs from the single one"
+        );
+    }
+    std::fs::write(
+        &jobs,
+        br#"[{"camera": "1", "mode": "fancy", "out": "x.exr"}]"#,
+    )
+    .unwrap();
+    let (code, _, err) = relit(&["render", sp, "--batch", jobs.to_str().unwrap()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("jobs.json") && err.contains("render 0") && err.contains("fancy"),
+        "{err}"
+    );
+    std::fs::write(&jobs, br#"[{"mode": "ulr", "out": "x.exr"}]"#).unwrap();
+    let (_, _, err) = relit(&["render", sp, "--batch", jobs.to_str().unwrap()]);
+    assert!(err.contains("\"camera\" is missing"), "{err}");
 }

@@ -19,6 +19,7 @@ fn mitsuba_depth_matches_engine_raster_of_the_true_mesh() {
         test_views: 1,
         // The camera set this test's tolerances were measured on.
         light_views: 0,
+        lamp_colours: Default::default(),
     };
     relit_scenegen::generate(&dir, 11, &opts).unwrap();
     common::render_ground_truth(&dir, &["--only", "aov"]);

@@ -162,7 +162,7 @@ fn golden(name: &str) -> (std::path::PathBuf, Vec<f32>, Vec<f32>, Vec<usize>) {
 #[test]
 fn network_matches_pytorch_golden() {
     let gpu = common::gpu();
-    for name in ["net_w12", "net_w66"] {
+    for name in ["net_w12", "net_w66", "net_w12r"] {
         let (weights, x, y, shape) = golden(name);
         let (h, w) = (shape[1] as u32, shape[2] as u32);
         for (storage, tol) in [(Storage::F32, 1e-4f32), (Storage::F16, 5e-3)] {
@@ -178,6 +178,29 @@ fn network_matches_pytorch_golden() {
         }
     }
     common::assert_no_validation_errors(&gpu);
+}
+
+/// A network with base "ratio": the output pass's CPU reference (`reference_network` with the
+/// input) turns the raw golden output into the image PyTorch composes (`model.py`: the ratio
+/// base added to O_d), within 1e-4 of the image's scale; the GPU output pass is held to that
+/// reference by tests/frame.rs.
+#[test]
+fn ratio_base_matches_pytorch_golden() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
+    let io = std::fs::read(dir.join("net_w12r.io.safetensors")).unwrap();
+    let st = safetensors::SafeTensors::deserialize(&io).unwrap();
+    let image: Vec<f32> = bytemuck::pod_collect_to_vec(st.tensor("image").unwrap().data());
+    let (_, x, y, shape) = golden("net_w12r");
+    let npix = shape[1] * shape[2];
+    let got = relit_engine::frame::output::reference_network(&y, Some(&x), npix, &vec![true; npix]);
+    let untm = relit_engine::frame::features::untonemap;
+    let want: Vec<f32> = (0..3)
+        .flat_map(|k| (0..npix).map(move |p| (k, p)))
+        .map(|(k, p)| untm(image[k * npix + p] + image[(k + 3) * npix + p]))
+        .collect();
+    let got: Vec<f32> = (0..3).flat_map(|k| got.iter().map(move |c| c[k])).collect();
+    let (e, s) = max_err(&got, &want);
+    assert!(e <= 1e-4 * s, "ratio base: max error {e}, scale {s}");
 }
 
 /// The trained network built into relit against PyTorch (float64) on a random input: the

@@ -17,6 +17,7 @@ fn small() -> RoomOptions {
         extra_lights: 3,
         test_views: 2,
         light_views: 3,
+        lamp_colours: Default::default(),
     }
 }
 
@@ -352,4 +353,44 @@ fn scene_check_warns_about_a_light_few_views_see() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{stderr}");
     assert!(!stderr.contains("warning:"), "{stderr}");
+}
+
+/// `LampColours::Mixed` tints about half the added lights with saturated colours (a channel
+/// under 0.5 of the largest) and changes nothing else: the same room, cameras, light shapes and
+/// powers (luminance of the radiance) as `Mild`.
+#[test]
+fn mixed_lamp_colours_saturate_some_lamps_and_change_nothing_else() {
+    let lum = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let sat = |c: [f32; 3]| {
+        let m = c[0].max(c[1]).max(c[2]);
+        c.iter().any(|&v| v < 0.5 * m)
+    };
+    let (mut saturated, mut total) = (0, 0);
+    for seed in 1..=8 {
+        let mild = room::generate(seed, &RoomOptions { extra_lights: 6, ..small() });
+        let mixed = room::generate(
+            seed,
+            &RoomOptions {
+                extra_lights: 6,
+                lamp_colours: room::LampColours::Mixed,
+                ..small()
+            },
+        );
+        assert_eq!(format!("{:?}", mild.objects), format!("{:?}", mixed.objects));
+        assert_eq!(format!("{:?}", mild.cameras), format!("{:?}", mixed.cameras));
+        for (a, b) in mild.lights.iter().zip(&mixed.lights) {
+            assert_eq!(format!("{:?}", a.shape), format!("{:?}", b.shape));
+            let (la, lb) = (lum(a.radiance), lum(b.radiance));
+            assert!((la - lb).abs() <= 1e-4 * la, "{}: power {la} vs {lb}", a.name);
+            assert!(!sat(a.radiance), "{}: mild lamp {:?}", a.name, a.radiance);
+            if !b.original {
+                total += 1;
+                saturated += sat(b.radiance) as usize;
+            }
+        }
+    }
+    assert!(
+        (total / 4..=3 * total / 4).contains(&saturated),
+        "{saturated} of {total} lamps saturated"
+    );
 }

@@ -5,6 +5,9 @@
 // a diffuse relighting baseline that needs no network. Writes linear RGBA32F (EXR) and a display image:
 // exposure (a linear scale) then the sRGB transfer function, 8 bits (screen, PNG).
 // In every mode a lit added light in front of the surface is drawn with its radiance.
+// A network with base "ratio" (model.py) corrects the ratio image: its diffuse output is added
+// to tm(R), R formed from the network's own input channels (I_1, E_src/π, E_add/π, E_rem/π,
+// untonemapped), as model.py's ratio_base does, so the trainer and the engine compute the same.
 #extension GL_EXT_scalar_block_layout : require
 #include "act_storage.glsl"
 #include "camera.glsl"
@@ -18,15 +21,33 @@ layout(set = 0, binding = 14) readonly buffer Irr { vec4 irr[]; };     // E_src,
 layout(set = 0, binding = 16) readonly buffer Net { ACT4 o[]; };   // 6 channels, pack4
 layout(set = 0, binding = 17) writeonly buffer Hdr { vec4 hdr[]; };
 layout(set = 0, binding = 18) writeonly buffer Ldr { uint ldr[]; };
+layout(set = 0, binding = 26) readonly buffer NetIn { ACT4 x[]; };  // 66 channels, pack4
 
 layout(push_constant, scalar) uniform Push {
     uint width; uint height; uint mode; float exposure;
     Camera cam;      // the novel camera (for the rays towards the added lights)
     uint nlights;
+    uint base;       // NetBase: 0 none, 1 ratio
 } pc;
 
 const uint MODE_NETWORK = 0u;
 const uint MODE_ULR = 1u;
+
+const float MU = 64.0;
+vec3 tm(vec3 v) { return log(1.0 + MU * max(v, vec3(0.0))) / log(1.0 + MU); }
+vec3 untm(vec3 y) { return (pow(vec3(1.0 + MU), max(y, vec3(0.0))) - 1.0) / MU; }
+
+// tm(I_1 / E_src · (E_add + E_src − E_rem)) from the input tensor: channels 0–2, 51–59
+// (pack4 groups 0, 12, 13, 14); E_src floored at 1e-4 / π as ratio mode floors E at 1e-4.
+vec3 ratio_base(uint p, uint npix) {
+    vec4 g0 = vec4(x[p]), g12 = vec4(x[12u * npix + p]);
+    vec4 g13 = vec4(x[13u * npix + p]), g14 = vec4(x[14u * npix + p]);
+    vec3 i1 = untm(g0.xyz);
+    vec3 es = untm(vec3(g12.w, g13.x, g13.y));
+    vec3 ea = untm(vec3(g13.z, g13.w, g14.x));
+    vec3 er = untm(g14.yzw);
+    return tm(i1 / max(es, vec3(1e-4 / 3.14159265358979)) * (ea + es - er));
+}
 
 float srgb(float x) {
     x = clamp(x, 0.0, 1.0);
@@ -43,7 +64,9 @@ void main() {
     if (xp.w > 0.0) {
         if (pc.mode == MODE_NETWORK) {
             vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
-            vec3 tmo = max(a.xyz + vec3(a.w, b.x, b.y), vec3(0.0));
+            vec3 od = a.xyz;
+            if (pc.base == 1u) od += ratio_base(p, npix);
+            vec3 tmo = max(od + vec3(a.w, b.x, b.y), vec3(0.0));
             c = (pow(vec3(65.0), tmo) - 1.0) / 64.0;
         } else if (pc.mode == MODE_ULR) {
             c = vec3(comp[p].rgb);

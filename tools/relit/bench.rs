@@ -876,6 +876,8 @@ fn frame_bench(
     let scene = relit_engine::scene::Scene::load(dir)?;
     let gpu = crate::open_gpu(opts)?;
     let mut args = fa.clone();
+    // The frame benchmark times the network unless another mode is asked for.
+    args.mode = args.mode.or(Some(crate::render::ModeArg::Network));
     let random_net = width.is_some() && args.mode != Some(crate::render::ModeArg::Ulr);
     if random_net {
         if args.weights.is_some() {

@@ -47,9 +47,14 @@ pub struct DatasetArgs {
     /// Novel cameras along each scene's test path (samples besides the input views).
     #[arg(long, default_value_t = 4)]
     pub test_views: usize,
-    /// Capture views aimed at each original light.
-    #[arg(long, default_value_t = 3)]
-    pub light_views: usize,
+    /// Capture views aimed at each original light; a list (`3,1,0`) is taken in turn by seed,
+    /// so that some rooms' original lights are seen by few views, as in many captures.
+    #[arg(long, default_value = "3", value_delimiter = ',', num_args = 1..)]
+    pub light_views: Vec<usize>,
+    /// Tints of the added lights: `mild` (near white, the datasets before 2026-12-01) or
+    /// `mixed` (half of them saturated: red, green, blue, warm, cold).
+    #[arg(long, value_enum, default_value = "mixed")]
+    pub lamp_colours: relit_scenegen::room::LampColours,
     /// Samples per pixel of the ground truth.
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
@@ -162,7 +167,7 @@ fn scene_job(a: &DatasetArgs, opts: &GpuOptions, job: &Job) -> Result<()> {
              another OUT)",
             dir.display(),
             describe_marker(made.trim()),
-            describe_marker(marker(a))
+            describe_marker(&marker(a))
         );
     }
     let scene = Scene::load(&dir)?;
@@ -212,7 +217,8 @@ fn ground_truth(a: &DatasetArgs, dir: &Path, seed: u64) -> Result<()> {
         height: a.res.1,
         extra_lights: a.extra_lights,
         test_views: a.test_views,
-        light_views: a.light_views,
+        light_views: a.light_views[(seed % a.light_views.len() as u64) as usize],
+        lamp_colours: a.lamp_colours,
     };
     relit_scenegen::generate(dir, seed, &o)?;
     let script = crate::tools_dir().join("groundtruth/render.py");
@@ -234,21 +240,28 @@ fn ground_truth(a: &DatasetArgs, dir: &Path, seed: u64) -> Result<()> {
     Ok(())
 }
 
-/// What the ground-truth marker holds: empty for raw targets (as datasets before `--denoise`).
-fn marker(a: &DatasetArgs) -> &'static str {
-    if a.denoise {
-        "denoised"
-    } else {
-        ""
+/// What the ground-truth marker holds: "denoised" or empty (raw targets, as datasets before
+/// `--denoise`), then " mixed-lamps" when the added lights' tints were drawn `mixed`.
+fn marker(a: &DatasetArgs) -> String {
+    let mut m = if a.denoise { "denoised" } else { "" }.to_string();
+    if a.lamp_colours == relit_scenegen::room::LampColours::Mixed {
+        m.push_str(" mixed-lamps");
     }
+    m.trim().to_string()
 }
 
-fn describe_marker(m: &str) -> &'static str {
-    if m == "denoised" {
+fn describe_marker(m: &str) -> String {
+    let targets = if m.split(' ').any(|w| w == "denoised") {
         "with denoised targets (--denoise)"
     } else {
         "with raw targets (no --denoise)"
-    }
+    };
+    let lamps = if m.split(' ').any(|w| w == "mixed-lamps") {
+        "--lamp-colours mixed"
+    } else {
+        "--lamp-colours mild"
+    };
+    format!("{targets} and {lamps}")
 }
 
 /// Every camera with ground truth: the input views (each left out of its own inputs) and the

@@ -83,16 +83,21 @@ enum Cmd {
     Render {
         scene: PathBuf,
         /// A view index, a view or test-view name, or a camera JSON file.
-        #[arg(long)]
-        camera: String,
+        #[arg(long, required_unless_present = "batch")]
+        camera: Option<String>,
         /// Lighting preset of the scene (default: the original lighting).
         #[arg(long)]
         lighting: Option<String>,
         /// Image size WxH (default: the camera's).
         #[arg(long, value_parser = parse_res)]
         res: Option<(u32, u32)>,
-        #[arg(long)]
-        out: PathBuf,
+        #[arg(long, required_unless_present = "batch")]
+        out: Option<PathBuf>,
+        /// Many renders with one load of the bake and the network: a JSON array of
+        /// {"camera", "lighting" (optional), "mode" (optional), "out"} in place of --camera,
+        /// --lighting and --out.
+        #[arg(long, conflicts_with_all = ["camera", "lighting", "out"])]
+        batch: Option<PathBuf>,
         #[command(flatten)]
         frame: render::FrameArgs,
     },
@@ -378,6 +383,10 @@ fn info(opts: &GpuOptions) -> Result<()> {
         );
     }
     println!("trained network: {}", shipped_network());
+    println!(
+        "default mode: {:?} (the best on the held-out rooms; README \"Evaluation\")",
+        relit_engine::frame::DEFAULT_MODE
+    );
     println!("limits:");
     println!(
         "  maxStorageBufferRange              {} MiB",
@@ -716,8 +725,17 @@ fn main() {
             lighting,
             res,
             out,
+            batch,
             frame,
-        } => render::render(&opts, scene, camera, *res, lighting.as_deref(), out, frame),
+        } => match (batch, camera, out) {
+            (Some(b), _, _) => render::render_batch(&opts, scene, b, *res, frame),
+            (None, Some(c), Some(o)) => {
+                render::render(&opts, scene, c, *res, lighting.as_deref(), o, frame)
+            }
+            _ => Err(anyhow::anyhow!(
+                "relit render: --camera and --out, or --batch"
+            )),
+        },
         Cmd::Fly {
             scene,
             path,

@@ -18,9 +18,10 @@ pub struct FrameArgs {
     /// trained ones built into relit (`engine/weights/`).
     #[arg(long)]
     pub weights: Option<PathBuf>,
-    /// `network` (the trained network of §5.1, the default), `ulr` (the I_1 composite, no
-    /// relighting) or `ratio` (I_1 relit by eq. 5's pseudo-albedo rule: diffuse relighting
-    /// without the network).
+    /// `network` (the trained network of §5.1), `ulr` (the I_1 composite, no relighting) or
+    /// `ratio` (I_1 relit by eq. 5's pseudo-albedo rule: diffuse relighting without the
+    /// network). Default: `network` with --weights, else the mode that scores best on the
+    /// held-out rooms (`frame::DEFAULT_MODE`: ratio while no network meets the floor).
     #[arg(long, value_enum)]
     pub mode: Option<ModeArg>,
     /// Which bake to read: the preset's sample counts (default: the complete bake with the most
@@ -170,7 +171,10 @@ pub fn open_renderer(
     let mode = match a.mode {
         Some(ModeArg::Ulr) => Mode::Ulr,
         Some(ModeArg::Ratio) => Mode::Ratio,
-        Some(ModeArg::Network) | None => Mode::Network,
+        Some(ModeArg::Network) => Mode::Network,
+        // Weights a user names are what they want to see; else the best mode we can show.
+        None if a.weights.is_some() => Mode::Network,
+        None => frame::DEFAULT_MODE,
     };
     // Weights a user names are always loaded, so that a bad file is an error in any mode.
     let net = match (&a.weights, mode == Mode::Network || keep_net) {
@@ -212,6 +216,100 @@ fn write_frame(r: &Renderer, out: &Path) -> Result<()> {
         Some("png") => image::write_png_rgba8(out, b.width, b.height, &r.ldr()?)?,
         _ => bail!("{}: expected a .exr or .png output", out.display()),
     }
+    Ok(())
+}
+
+/// One render of a `--batch` file.
+struct BatchJob {
+    camera: String,
+    lighting: Option<String>,
+    mode: Option<Mode>,
+    out: PathBuf,
+}
+
+/// Reads a `--batch` file: a JSON array of {"camera", "lighting" (optional), "mode" (optional:
+/// network, ratio or ulr), "out"}.
+fn batch_jobs(path: &Path) -> Result<Vec<BatchJob>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let doc: serde_json::Value = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: not JSON (expected an array of renders)",
+            path.display()
+        )
+    })?;
+    let items = doc
+        .as_array()
+        .with_context(|| format!("{}: expected a JSON array of renders", path.display()))?;
+    let field = |i: usize, v: &serde_json::Value, k: &str| -> Result<Option<String>> {
+        match v.get(k) {
+            None | Some(serde_json::Value::Null) => Ok(None),
+            Some(serde_json::Value::String(s)) => Ok(Some(s.clone())),
+            Some(_) => bail!("{}: render {i}: \"{k}\" must be a string", path.display()),
+        }
+    };
+    let mut jobs = Vec::with_capacity(items.len());
+    for (i, v) in items.iter().enumerate() {
+        let need = |k: &str| -> Result<String> {
+            field(i, v, k)?
+                .with_context(|| format!("{}: render {i}: \"{k}\" is missing", path.display()))
+        };
+        let mode = match field(i, v, "mode")?.as_deref() {
+            None => None,
+            Some("network") => Some(Mode::Network),
+            Some("ratio") => Some(Mode::Ratio),
+            Some("ulr") => Some(Mode::Ulr),
+            Some(m) => bail!(
+                "{}: render {i}: mode \"{m}\": expected network, ratio or ulr",
+                path.display()
+            ),
+        };
+        jobs.push(BatchJob {
+            camera: need("camera")?,
+            lighting: field(i, v, "lighting")?,
+            mode,
+            out: PathBuf::from(need("out")?),
+        });
+    }
+    Ok(jobs)
+}
+
+/// `relit render --batch FILE`: many renders of one scene with one load of the bake and the
+/// network (evaluations render hundreds of views).
+pub fn render_batch(
+    opts: &GpuOptions,
+    dir: &Path,
+    jobs: &Path,
+    res: Option<(u32, u32)>,
+    a: &FrameArgs,
+) -> Result<()> {
+    let scene = Scene::load(dir)?;
+    let jobs = batch_jobs(jobs)?;
+    let mut cams = Vec::with_capacity(jobs.len());
+    let mut lights = Vec::with_capacity(jobs.len());
+    let mut used: Vec<String> = Vec::new();
+    for j in &jobs {
+        cams.push(resolve_camera(&scene, &j.camera, res)?);
+        let l = lighting(&scene, j.lighting.as_deref())?;
+        used.extend(
+            lit(&scene, &l)
+                .into_iter()
+                .filter(|n| !used.contains(n))
+                .collect::<Vec<_>>(),
+        );
+        lights.push(l);
+    }
+    let gpu = crate::open_gpu(opts)?;
+    let size = cams.first().map(|c| (c.width, c.height));
+    let need_net = jobs
+        .iter()
+        .any(|j| j.mode.is_none() || j.mode == Some(Mode::Network));
+    let (mut r, mode) = open_renderer(&gpu, &scene, a, size, Some(used), need_net)?;
+    for ((j, cam), light) in jobs.iter().zip(&cams).zip(&lights) {
+        r.render(cam, light, j.mode.unwrap_or(mode), a.exposure, None)?;
+        write_frame(&r, &j.out)?;
+    }
+    println!("{}: {} renders", dir.display(), jobs.len());
     Ok(())
 }
 

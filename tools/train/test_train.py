@@ -246,23 +246,44 @@ class SceneScaleTest(unittest.TestCase):
         self.assertLess(np.median(errs), 0.25)
 
 
-    def test_evaluator_scores_the_three_modes_under_three_lightings(self):
-        run = os.path.join(self.tmp.name, "run")
-        self.assertEqual(train(self.data, run, "--steps", "3").returncode, 0)
+    def test_evaluator_splits_covered_pixels_from_holes_and_an_untrained_ratio_net_is_ratio(self):
+        """heldout.py builds the tiny set; evaluate.py scores an untrained network with base
+        "ratio" (zero output conv) and one with base "none" through the engine: the first
+        renders the ratio image, so it meets the floor with equal scores; every metric is
+        there per room, lighting and mode."""
+        import model as M
+        room_set = os.path.join(self.tmp.name, "tiny-set")
+        scenegen = os.path.join(os.path.dirname(RELIT), "scenegen")
+        r = subprocess.run([sys.executable, os.path.join(HERE, "heldout.py"), "build", room_set,
+                            "--set", "tiny", "--spp", "16", "--relit", RELIT, "--scenegen", scenegen],
+                           capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        nets = {}
+        for base in ("ratio", "none"):
+            nets[base] = os.path.join(self.tmp.name, f"untrained-{base}.safetensors")
+            __import__("torch").manual_seed(1)
+            M.save(M.RelightNet(width=8, levels=3, base=base), nets[base])
         out = os.path.join(self.tmp.name, "eval")
-        r = subprocess.run([sys.executable, os.path.join(HERE, "evaluate.py"), "--data", self.data,
-                            "--weights", os.path.join(run, "weights.safetensors"), "--out", out,
-                            "--relit", RELIT], capture_output=True, text=True)
+        r = subprocess.run([sys.executable, os.path.join(HERE, "evaluate.py"), "--set", room_set,
+                            "--out", out, "--relit", RELIT,
+                            "--network", f"zero={nets['ratio']}", "--network", f"direct={nets['none']}"],
+                           capture_output=True, text=True)
         self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("floor, zero: met in every room and lighting", r.stdout)
         m = json.loads(read(os.path.join(out, "metrics.json")))
-        self.assertEqual(len(m["summary"]), 9)
-        self.assertEqual(len(m["images"]), 9, "1 test view × 3 lightings × 3 modes")
-        for k, v in m["summary"].items():
-            self.assertTrue(0 < v["psnr"] < 60 and 0 <= v["dssim"] <= 1 and v["lpips"] >= 0, k)
+        self.assertEqual(len(m["images"]), 12, "1 test view × 3 lightings × 4 modes")
+        per = {(x["lighting"], x["mode"]): x for x in m["rooms"]}
+        for lt in ("eval_original", "eval_dimmed", "eval_alone"):
+            z, ratio = per[(lt, "net:zero")], per[(lt, "ratio")]
+            self.assertAlmostEqual(z["psnr"], ratio["psnr"], delta=0.05, msg=lt)
+            for k in ("dssim", "lpips", "chroma", "sharpness"):
+                self.assertIsNotNone(ratio[k], (lt, k))
+            self.assertTrue(0 < ratio["psnr"] < 60 and 0 <= ratio["holes"] < 1, lt)
         # Under the original lighting the ratio rule changes nothing: it is the ULR composite.
-        ratio, ulr = m["summary"]["eval_original/ratio"], m["summary"]["eval_original/ulr"]
-        self.assertAlmostEqual(ratio["psnr"], ulr["psnr"], places=2)
-        self.assertTrue(os.path.getsize(os.path.join(out, "contact_sheet.png")) > 0)
+        self.assertAlmostEqual(per[("eval_original", "ratio")]["psnr"],
+                               per[("eval_original", "ulr")]["psnr"], delta=0.01)
+        self.assertTrue(os.path.getsize(os.path.join(out, "sg700100.png")) > 0)
+        self.assertIn("| sg700100 | alone | net:zero |", read(os.path.join(out, "table.md")))
 
 
 class PerceptualTest(unittest.TestCase):

@@ -194,6 +194,13 @@ def parse_args():
     ap.add_argument("--init-from", metavar="CHECKPOINT",
                     help="start a new run from another run's checkpoint.pt: its network, optimizer "
                          "state and step, with this run's terms (ablations from a common point)")
+    ap.add_argument("--base", choices=M.BASES, default="ratio",
+                    help="ratio: the network corrects the ratio-relit composite (starts as it); "
+                         "none: the network's output is the image (the paper's formulation)")
+    ap.add_argument("--init-weights", metavar="WEIGHTS",
+                    help="start a new run's network from a weights file (e.g. the shipped one); "
+                         "when its base differs from --base, the output conv keeps its "
+                         "initialization (zero for --base ratio)")
     ap.add_argument("--device", default="cpu",
                     help="torch device: cpu or cuda (under torchrun, each process takes its own GPU)")
     ap.add_argument("--vgg", type=float, default=0.1, help="λ_vgg of the perceptual terms (0: off)")
@@ -234,6 +241,29 @@ def init_from(a, net, opt, disc, opt_d, lead):
             f.write(json.dumps({"step": c["step"], "init_from": os.path.abspath(a.init_from),
                                 "from_terms": c["terms"], "data": os.path.abspath(a.data)}) + "\n")
     return c["step"]
+
+
+def init_weights(a, net, lead):
+    """Loads a weights file's network into `net` (same shape); with another base, every tensor
+    but the output conv's, which keeps this run's initialization."""
+    if a.resume or a.init_from:
+        sys.exit("--init-weights starts a new run: not with --resume or --init-from")
+    try:
+        src = M.load(a.init_weights)
+    except (OSError, KeyError, ValueError) as e:
+        sys.exit(f"{a.init_weights}: not a weights file ({e})")
+    shape = lambda c: {k: v for k, v in c.items() if k != "base"}
+    if shape(src.config) != shape(net.config):
+        sys.exit(f"{a.init_weights}: network {src.config} differs from {net.config} "
+                 "(--width, --*-blocks)")
+    state = src.state_dict()
+    if src.config["base"] != net.config["base"]:
+        state = {k: v for k, v in state.items() if not k.startswith("out_conv.")}
+    net.load_state_dict(state, strict=False)
+    if lead:
+        with open(os.path.join(a.out, "log.jsonl"), "a") as f:
+            f.write(json.dumps({"step": 0, "init_weights": os.path.abspath(a.init_weights),
+                                "from_base": src.config["base"]}) + "\n")
 
 
 class Dist:
@@ -322,7 +352,7 @@ def main():
     # The same initial weights in every process; the data each draws differs.
     torch.manual_seed(a.seed)
     net = M.RelightNet(width=a.width, trunk_blocks=a.trunk_blocks, level_blocks=a.level_blocks,
-                       tail_blocks=a.tail_blocks).to(a.device)
+                       tail_blocks=a.tail_blocks, base=a.base).to(a.device)
     opt = torch.optim.RMSprop(net.parameters(), lr=a.lr)
     disc = A.Discriminator().to(a.device) if a.adv > 0 else None
     opt_d = torch.optim.RMSprop(disc.parameters(), lr=a.lr) if disc is not None else None
@@ -362,6 +392,8 @@ def main():
             open(os.path.join(a.out, "log.jsonl"), "w").close()
         if a.init_from:
             step = init_from(a, net, opt, disc, opt_d, lead)
+        elif a.init_weights:
+            init_weights(a, net, lead)
     dd.barrier()
 
     def checkpoint():

@@ -389,6 +389,12 @@ pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
     Ok(m)
 }
 
+/// The mode commands render in when the user names neither a mode nor weights: the one that
+/// scores best on the held-out rooms (`tools/train/evaluate.py`, README "Evaluation"). Ratio
+/// while no network meets the floor there (at or above ratio on covered pixels in every room
+/// and lighting); `--mode network` or `--weights FILE` run the network.
+pub const DEFAULT_MODE: Mode = Mode::Ratio;
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
     /// The network's output (needs weights).
@@ -767,10 +773,15 @@ impl Renderer {
                         exposure,
                         cam: cam.to_gpu(NEAR, FAR),
                         nlights,
+                        base: match self.net.as_ref().map(|n| n.config.base) {
+                            Some(crate::net::NetBase::Ratio) => 1,
+                            _ => 0,
+                        },
                     };
                     let mut v = with13(&binds, &b.comp);
                     v.retain(|(i, _)| *i != 16);
                     v.push((16, Bind::Buffer(&net_out.buf)));
+                    v.push((26, Bind::Buffer(&b.input.buf)));
                     self.output
                         .dispatch_subset(cmd, &v, bytes_of(&push), threads)?;
                 });

@@ -17,6 +17,8 @@ pub struct Push {
     pub exposure: f32,
     pub cam: GpuCamera,
     pub nlights: u32,
+    /// [`crate::net::NetBase`]: 0 none, 1 ratio.
+    pub base: u32,
 }
 
 pub const SHADER_F16: &str = "frame/output.comp";
@@ -33,19 +35,40 @@ pub fn srgb(x: f32) -> f32 {
 }
 
 /// CPU reference of network mode: linear RGB per pixel from the 6 output channels (planar CHW),
-/// black where `has_surface` is false.
-pub fn reference_network(net_out: &[f32], npix: usize, has_surface: &[bool]) -> Vec<[f32; 3]> {
+/// black where `has_surface` is false. With `ratio_input` (the network's 66-channel input,
+/// planar CHW), the diffuse channels correct [`ratio_base`] (a network with base "ratio").
+pub fn reference_network(
+    net_out: &[f32],
+    ratio_input: Option<&[f32]>,
+    npix: usize,
+    has_surface: &[bool],
+) -> Vec<[f32; 3]> {
     (0..npix)
         .map(|p| {
             if !has_surface[p] {
                 return [0.0; 3];
             }
+            let base = ratio_input.map_or([0.0; 3], |x| ratio_base(x, npix, p));
             let c = |k: usize| {
-                super::features::untonemap(net_out[k * npix + p] + net_out[(k + 3) * npix + p])
+                let o = base[k] + net_out[k * npix + p] + net_out[(k + 3) * npix + p];
+                super::features::untonemap(o)
             };
             [c(0), c(1), c(2)]
         })
         .collect()
+}
+
+/// tm of eq. 5's ratio image at pixel `p` from the network input (planar CHW): I_1 (channels
+/// 0–2) / E_src · (E_add + E_src − E_rem) (51–59, stored /π), E_src/π floored at 1e-4/π —
+/// `model.py`'s `ratio_base` and `output.glsl`'s.
+pub fn ratio_base(x: &[f32], npix: usize, p: usize) -> [f32; 3] {
+    use super::features::{tonemap, untonemap};
+    let ch = |c: usize| untonemap(x[c * npix + p]);
+    let floor = 1e-4 / std::f32::consts::PI;
+    [0, 1, 2].map(|k| {
+        let (i1, es, ea, er) = (ch(k), ch(51 + k), ch(54 + k), ch(57 + k));
+        tonemap(i1 / es.max(floor) * (ea + es - er))
+    })
 }
 
 /// CPU reference of ratio mode from the composites and irradiance planes (as the passes wrote

@@ -12,7 +12,8 @@ pub use conv::{
 };
 pub use gemm::Gemm;
 pub use model::{
-    NetBuffers, NetConfig, Network, Params, RandomParams, SafetensorsParams, SHIPPED, SHIPPED_NAME,
+    NetBase, NetBuffers, NetConfig, Network, Params, RandomParams, SafetensorsParams, SHIPPED,
+    SHIPPED_NAME,
 };
 
 use crate::error::{Error, Result};

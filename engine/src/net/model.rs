@@ -23,6 +23,27 @@ pub struct NetConfig {
     pub level_blocks: u32,
     pub tail_blocks: u32,
     pub out_channels: u32,
+    /// What the output's diffuse channels correct (absent in files written before it: none).
+    #[serde(default, skip_serializing_if = "NetBase::is_none")]
+    pub base: NetBase,
+}
+
+/// The image the network's diffuse output is added to, in tonemapped space (`model.py`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum NetBase {
+    /// The output is the image (the paper's formulation).
+    #[default]
+    None,
+    /// The output corrects eq. 5's ratio-relit composite: an untrained (zero) output conv
+    /// renders the ratio image, and training can only add to it.
+    Ratio,
+}
+
+impl NetBase {
+    pub fn is_none(&self) -> bool {
+        *self == NetBase::None
+    }
 }
 
 impl NetConfig {
@@ -35,6 +56,7 @@ impl NetConfig {
             level_blocks: 4,
             tail_blocks: 2,
             out_channels: 6,
+            base: NetBase::None,
         }
     }
 }

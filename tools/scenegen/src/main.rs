@@ -38,6 +38,9 @@ struct SceneArgs {
     /// Capture views aimed at each original light (the first ones; at most half of --views).
     #[arg(long, default_value_t = 3)]
     light_views: usize,
+    /// Tints of the extra lights: mild (near white) or mixed (half saturated).
+    #[arg(long, value_enum, default_value = "mild")]
+    lamp_colours: relit_scenegen::room::LampColours,
 }
 
 impl SceneArgs {
@@ -49,6 +52,7 @@ impl SceneArgs {
             extra_lights: self.extra_lights,
             test_views: self.test_views,
             light_views: self.light_views,
+            lamp_colours: self.lamp_colours,
         }
     }
 }

@@ -63,6 +63,29 @@ pub struct RoomOptions {
     /// `views`), so that E_src sees every light from several views
     /// ([`relit_engine::scene::MIN_VIEWS_PER_LIGHT`]).
     pub light_views: usize,
+    /// Tints of the added lights.
+    pub lamp_colours: LampColours,
+}
+
+/// How the added lights are tinted.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum LampColours {
+    /// Near-white tints, each channel in 0.6–1 (the datasets before 2026-12-01).
+    #[default]
+    Mild,
+    /// Half mild, half saturated: a random hue at saturation 0.5–0.95 (red, green, blue,
+    /// warm and cold lamps all occur), so a network meets lights whose colour differs from
+    /// the original lighting's.
+    Mixed,
+}
+
+/// A saturated tint of hue `h` (0–1) and saturation `s`: HSV with value 1.
+pub fn hue_tint(h: f32, s: f32) -> Vec3 {
+    let k = |n: f32| {
+        let k = (n + h * 6.0) % 6.0;
+        1.0 - s * (k.min(4.0 - k)).clamp(0.0, 1.0)
+    };
+    Vec3::new(k(5.0), k(3.0), k(1.0))
 }
 
 impl Default for RoomOptions {
@@ -74,6 +97,7 @@ impl Default for RoomOptions {
             extra_lights: 6,
             test_views: 8,
             light_views: 3,
+            lamp_colours: LampColours::Mild,
         }
     }
 }
@@ -715,11 +739,16 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             rng.range(-0.5, 0.5),
         ) * size;
         let n = (target - c).normalize_or(Vec3::NEG_Y);
-        let tint = Vec3::new(
+        let mut tint = Vec3::new(
             rng.range(0.6, 1.0),
             rng.range(0.6, 1.0),
             rng.range(0.6, 1.0),
         );
+        // A stream of its own, so that the rest of the room is the same for every choice.
+        let mut tints = Rng::new(seed ^ 0x7147_C010 ^ (i as u64).wrapping_mul(0x2545_F491));
+        if o.lamp_colours == LampColours::Mixed && tints.f32() < 0.5 {
+            tint = hue_tint(tints.f32(), tints.range(0.5, 0.95));
+        }
         let shape = if rng.f32() < 0.5 {
             LightShape::Disk {
                 center: c,

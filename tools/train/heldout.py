@@ -1,0 +1,184 @@
+"""Evaluation rooms that look like what users run (issue 22): scenegen rooms from seeds no
+training or validation dataset uses, and rooms written by hand, at 256×192 with their input
+views, each with one added lamp of a saturated or strongly tinted colour, Mitsuba's truth for
+the test views under the original lighting and the lamp alone, and the bake users run.
+
+  python3 tools/train/heldout.py build OUT [--set heldout|validation|tiny] [--spp 64]
+
+Sets (fixed here, so that every report speaks of the same rooms):
+- heldout: only reports, never chooses. Six scenegen rooms (seeds 700000–700005, 32 views,
+  4 test views), whose original lights are seen by 3, 1 or 0 of the light-aimed views, with a
+  red, green, blue, warm, cold or magenta lamp; tests/scenes/hand_room (16 views, cold lamp)
+  and tests/scenes/hand_room2 (near-mirror, glossy cabinet, strong wall colours; green lamp).
+- validation: what checkpoints and designs are chosen on: scenegen seeds 800000–800001.
+- tiny: one small room (the evaluation's own test).
+
+Per room OUT/<room>/ holds a scene (scene.json, meshes, images/, gt/{original,lamp}/ for the
+test views, denoised) with the presets eval_original (α_dim 0), eval_dimmed (the original at
+30 % + the lamp) and eval_alone (the lamp alone), and its preview bake. A finished room has
+`.heldout-done`; an unfinished one is rebuilt from scratch (renders) or resumed (the bake).
+"""
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
+DONE = ".heldout-done"
+
+# Lamp tints (linear RGB; luminance is renormalized so the lamp keeps its power).
+TINTS = {"red": [1.0, 0.12, 0.08], "green": [0.15, 1.0, 0.2], "blue": [0.12, 0.3, 1.0],
+         "warm": [1.0, 0.62, 0.28], "cold": [0.55, 0.78, 1.0], "magenta": [1.0, 0.2, 0.85]}
+LIGHTINGS = {"eval_original": (0.0, 0.0), "eval_dimmed": (0.7, 1.0), "eval_alone": (1.0, 1.0)}
+
+# (room name, source, options): source "scenegen:SEED" or a directory written by hand.
+SETS = {
+    "heldout": [
+        ("sg700000", "scenegen:700000", dict(light_views=3, tint="red")),
+        ("sg700001", "scenegen:700001", dict(light_views=1, tint="green")),
+        ("sg700002", "scenegen:700002", dict(light_views=0, tint="blue")),
+        ("sg700003", "scenegen:700003", dict(light_views=3, tint="warm")),
+        ("sg700004", "scenegen:700004", dict(light_views=1, tint="cold")),
+        ("sg700005", "scenegen:700005", dict(light_views=0, tint="magenta")),
+        ("hand_room", "tests/scenes/hand_room", dict(tint="cold")),
+        ("hand_room2", "tests/scenes/hand_room2", dict(tint="green")),
+    ],
+    "validation": [
+        ("sg800000", "scenegen:800000", dict(light_views=2, tint="green")),
+        ("sg800001", "scenegen:800001", dict(light_views=0, tint="warm")),
+    ],
+    "tiny": [
+        ("sg700100", "scenegen:700100", dict(light_views=1, tint="red", views=6, res=(48, 36),
+                                             test_views=1)),
+    ],
+}
+RES = (256, 192)
+VIEWS = 32
+TEST_VIEWS = 4
+
+
+def lum(c):
+    return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+
+
+def run(args, what):
+    r = subprocess.run(args, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{what} failed ({' '.join(map(str, args))}):\n{r.stdout}{r.stderr}")
+    return r.stdout
+
+
+def write_json(path, doc):
+    with open(path + ".tmp", "w") as f:
+        json.dump(doc, f, indent=1)
+    os.replace(path + ".tmp", path)
+
+
+def scale_camera(cam, res):
+    s = res[0] / cam["width"]
+    if abs(res[1] / cam["height"] - s) > 1e-6:
+        raise ValueError(f"camera {cam['width']}x{cam['height']} cannot be scaled to {res}")
+    for k in ("fx", "fy", "cx", "cy"):
+        cam[k] = cam[k] * s
+    cam["width"], cam["height"] = res
+
+
+def prepare_scene(doc, tint, res):
+    """One added lamp, recoloured at the same luminance, the cameras at `res`, the presets."""
+    added = [l for l in doc["lights"] if not l.get("original")]
+    lamp = added[0]
+    doc["lights"] = [l for l in doc["lights"] if l.get("original")] + [lamp]
+    t = TINTS[tint]
+    y = lum(lamp["radiance"])
+    lamp["radiance"] = [y * c / lum(t) for c in t]
+    syn = doc["synthetic"]
+    syn["conditions"] = [c for c in syn["conditions"] if c["name"] == "original"]
+    syn["conditions"].append({"name": "lamp", "lights": [lamp["name"]]})
+    for v in doc["views"]:
+        scale_camera(v["camera"], res)
+    for v in syn["test_views"]:
+        scale_camera(v["camera"], res)
+    doc["presets"] = [{"name": n, "dim": d, "intensities": {lamp["name"]: i}}
+                      for n, (d, i) in LIGHTINGS.items()]
+    return doc
+
+
+def generate(room_dir, source, o, bins):
+    if source.startswith("scenegen:"):
+        seed = source.split(":")[1]
+        w, h = o.get("res", RES)
+        run([bins["scenegen"], "room", room_dir, "--seed", seed, "--views", str(o.get("views", VIEWS)),
+             "--res", f"{w}x{h}", "--extra-lights", "1", "--test-views",
+             str(o.get("test_views", TEST_VIEWS)), "--light-views", str(o["light_views"])], "scenegen")
+    else:
+        shutil.copytree(os.path.join(ROOT, source), room_dir)
+    path = os.path.join(room_dir, "scene.json")
+    with open(path) as f:
+        doc = json.load(f)
+    write_json(path, prepare_scene(doc, o["tint"], o.get("res", RES)))
+    # What the room is, beside the scene (scene.json admits only its own fields).
+    write_json(os.path.join(room_dir, "heldout.json"), {"source": source, **o})
+
+
+def build_room(out, name, source, o, a, bins, log):
+    room = os.path.join(out, name)
+    if os.path.exists(os.path.join(room, DONE)):
+        return False
+    t0 = time.time()
+    marker = os.path.join(room, ".rendered")
+    if not os.path.exists(marker):
+        if os.path.exists(room):
+            shutil.rmtree(room)
+        generate(room, source, o, bins)
+        with open(os.path.join(room, "scene.json")) as f:
+            tests = [v["name"] for v in json.load(f)["synthetic"]["test_views"]]
+        render = [sys.executable, os.path.join(ROOT, "tools", "groundtruth", "render.py"), room,
+                  "--spp", str(a.spp)]
+        run(render + ["--only", "inputs"], f"{name}: input photographs")
+        run(render + ["--views", ",".join(tests), "--denoise"], f"{name}: test-view truth")
+        open(marker, "w").close()
+    run([bins["relit"], "bake", room, "--quality", "preview"], f"{name}: bake")
+    with open(os.path.join(room, DONE), "w") as f:
+        f.write(source + "\n")
+    log(f"heldout: {name} built in {time.time() - t0:.0f} s")
+    return True
+
+
+def rooms(out, which):
+    """(name, directory) of the finished rooms of a set, in the set's order."""
+    return [(n, os.path.join(out, n)) for n, _, _ in SETS[which]
+            if os.path.exists(os.path.join(out, n, DONE))]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    b = sub.add_parser("build")
+    b.add_argument("out")
+    b.add_argument("--set", choices=sorted(SETS), default="heldout")
+    b.add_argument("--spp", type=int, default=64)
+    b.add_argument("--relit", default=os.path.join(ROOT, "target", "release", "relit"))
+    b.add_argument("--scenegen", default=os.path.join(ROOT, "target", "release", "scenegen"))
+    a = ap.parse_args()
+    bins = {"relit": a.relit, "scenegen": a.scenegen}
+    for k, p in bins.items():
+        if not os.path.exists(p):
+            sys.exit(f"error: {p}: no {k} binary (cargo build --release -p "
+                     f"{'relit' if k == 'relit' else 'relit-scenegen'})")
+    os.makedirs(a.out, exist_ok=True)
+    t0 = time.time()
+    todo = SETS[a.set]
+    try:
+        for k, (name, source, o) in enumerate(todo):
+            build_room(a.out, name, source, o, a, bins, lambda m: print(m, flush=True))
+            print(f"heldout: {k + 1}/{len(todo)} rooms ({time.time() - t0:.0f} s)", flush=True)
+    except (OSError, ValueError, RuntimeError, KeyError) as e:
+        sys.exit(f"error: {e}")
+
+
+if __name__ == "__main__":
+    main()
