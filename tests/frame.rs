@@ -481,6 +481,51 @@ fn untrained_ratio_network_renders_the_ratio_image() {
     common::assert_no_validation_errors(&gpu);
 }
 
+/// Ratio-filled mode is ratio where the composite `I_1` is not black and the network's image in
+/// the holes (`output::reference_ratio_filled` over the two modes' own frames), exactly; the
+/// novel camera here looks past the views' coverage, so both kinds of pixel occur.
+#[test]
+fn ratio_filled_mode_is_ratio_with_the_networks_holes() {
+    let gpu = common::gpu();
+    let t = tiny();
+    let scene =
+        FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, &[], MapFormat::Rgba16f).unwrap();
+    let mut cfg = NetConfig::paper(8);
+    cfg.levels = 3;
+    let net = Network::from_params(
+        NetKernels::new(&gpu, Storage::F32).unwrap(),
+        cfg,
+        &RandomParams(6),
+    )
+    .unwrap();
+    let mut r = Renderer::new(&gpu, scene, Some(net), Storage::F32).unwrap();
+    let lighting = Lighting {
+        intensities: vec![],
+        alpha_dim: 0.3,
+    };
+    let mut frame = |mode| {
+        r.render(&t.novel, &lighting, mode, 1.0, None).unwrap();
+        let hdr: Vec<[f32; 3]> = r
+            .hdr()
+            .unwrap()
+            .iter()
+            .map(|p| [p[0], p[1], p[2]])
+            .collect();
+        (hdr, r.buffers_ref().unwrap().composites().unwrap())
+    };
+    let (ratio, comp) = frame(Mode::Ratio);
+    let (network, _) = frame(Mode::Network);
+    let (filled, _) = frame(Mode::RatioFilled);
+    let holes = (0..ratio.len())
+        .filter(|&p| comp[p][..3].iter().all(|&c| c == 0.0))
+        .count();
+    eprintln!("ratio-filled: {holes} of {} pixels are holes", ratio.len());
+    let want = output::reference_ratio_filled(&comp, &ratio, &network);
+    let got: Vec<[f32; 4]> = filled.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
+    assert_close(&got, &want, 1e-6, "ratio-filled");
+    common::assert_no_validation_errors(&gpu);
+}
+
 fn surface_mask(b: &relit_engine::frame::FrameBuffers) -> Vec<bool> {
     let g = b.gbuf.download().unwrap();
     g.pos_depth.iter().map(|p| p[3] > 0.0).collect()

@@ -367,7 +367,13 @@ fn mixed_lamp_colours_saturate_some_lamps_and_change_nothing_else() {
     };
     let (mut saturated, mut total) = (0, 0);
     for seed in 1..=8 {
-        let mild = room::generate(seed, &RoomOptions { extra_lights: 6, ..small() });
+        let mild = room::generate(
+            seed,
+            &RoomOptions {
+                extra_lights: 6,
+                ..small()
+            },
+        );
         let mixed = room::generate(
             seed,
             &RoomOptions {
@@ -376,12 +382,22 @@ fn mixed_lamp_colours_saturate_some_lamps_and_change_nothing_else() {
                 ..small()
             },
         );
-        assert_eq!(format!("{:?}", mild.objects), format!("{:?}", mixed.objects));
-        assert_eq!(format!("{:?}", mild.cameras), format!("{:?}", mixed.cameras));
+        assert_eq!(
+            format!("{:?}", mild.objects),
+            format!("{:?}", mixed.objects)
+        );
+        assert_eq!(
+            format!("{:?}", mild.cameras),
+            format!("{:?}", mixed.cameras)
+        );
         for (a, b) in mild.lights.iter().zip(&mixed.lights) {
             assert_eq!(format!("{:?}", a.shape), format!("{:?}", b.shape));
             let (la, lb) = (lum(a.radiance), lum(b.radiance));
-            assert!((la - lb).abs() <= 1e-4 * la, "{}: power {la} vs {lb}", a.name);
+            assert!(
+                (la - lb).abs() <= 1e-4 * la,
+                "{}: power {la} vs {lb}",
+                a.name
+            );
             assert!(!sat(a.radiance), "{}: mild lamp {:?}", a.name, a.radiance);
             if !b.original {
                 total += 1;

@@ -4,6 +4,8 @@
 // pseudo-albedo rule of eq. 5, I_1 / E_src · (E_add + E_src − E_rem) (E_src floored at 1e-4):
 // a diffuse relighting baseline that needs no network. Writes linear RGBA32F (EXR) and a display image:
 // exposure (a linear scale) then the sRGB transfer function, 8 bits (screen, PNG).
+// Ratio-filled mode shows ratio's image where an input view sees the surface (I_1 not black) and
+// the network's in the holes, which ratio leaves black.
 // In every mode a lit added light in front of the surface is drawn with its radiance.
 // A network with base "ratio" (model.py) corrects the ratio image: its diffuse output is added
 // to tm(R), R formed from the network's own input channels (I_1, E_src/π, E_add/π, E_rem/π,
@@ -32,6 +34,7 @@ layout(push_constant, scalar) uniform Push {
 
 const uint MODE_NETWORK = 0u;
 const uint MODE_ULR = 1u;
+const uint MODE_RATIO_FILLED = 3u;  // ratio where I_1 is not black, the network in the holes
 
 const float MU = 64.0;
 vec3 tm(vec3 v) { return log(1.0 + MU * max(v, vec3(0.0))) / log(1.0 + MU); }
@@ -61,8 +64,9 @@ void main() {
     vec3 c = vec3(0.0);
     ivec2 xy = ivec2(p % pc.width, p / pc.width);
     vec4 xp = imageLoad(g_pos, xy);
+    bool hole = all(equal(vec3(comp[p].rgb), vec3(0.0)));
     if (xp.w > 0.0) {
-        if (pc.mode == MODE_NETWORK) {
+        if (pc.mode == MODE_NETWORK || (pc.mode == MODE_RATIO_FILLED && hole)) {
             vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
             vec3 od = a.xyz;
             if (pc.base == 1u) od += ratio_base(p, npix);

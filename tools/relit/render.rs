@@ -21,7 +21,7 @@ pub struct FrameArgs {
     /// `network` (the trained network of §5.1), `ulr` (the I_1 composite, no relighting) or
     /// `ratio` (I_1 relit by eq. 5's pseudo-albedo rule: diffuse relighting without the
     /// network). Default: `network` with --weights, else the mode that scores best on the
-    /// held-out rooms (`frame::DEFAULT_MODE`: ratio while no network meets the floor).
+    /// validation rooms (`frame::DEFAULT_MODE`: ratio-filled while no network meets the floor).
     #[arg(long, value_enum)]
     pub mode: Option<ModeArg>,
     /// Which bake to read: the preset's sample counts (default: the complete bake with the most
@@ -54,6 +54,8 @@ pub enum ModeArg {
     Ulr,
     /// The I_1 composite relit by eq. 5's pseudo-albedo rule (diffuse only, no network).
     Ratio,
+    /// Ratio where an input view sees the surface, the network in the holes no view sees.
+    RatioFilled,
 }
 
 /// The best complete bake of `scene` (restricted to a quality preset's sample counts when
@@ -171,13 +173,14 @@ pub fn open_renderer(
     let mode = match a.mode {
         Some(ModeArg::Ulr) => Mode::Ulr,
         Some(ModeArg::Ratio) => Mode::Ratio,
+        Some(ModeArg::RatioFilled) => Mode::RatioFilled,
         Some(ModeArg::Network) => Mode::Network,
         // Weights a user names are what they want to see; else the best mode we can show.
         None if a.weights.is_some() => Mode::Network,
         None => frame::DEFAULT_MODE,
     };
     // Weights a user names are always loaded, so that a bad file is an error in any mode.
-    let net = match (&a.weights, mode == Mode::Network || keep_net) {
+    let net = match (&a.weights, mode.needs_network() || keep_net) {
         (Some(w), _) => Some(Network::load(gpu, w, storage)?),
         (None, true) => Some(Network::shipped(gpu, storage)?),
         (None, false) => None,
@@ -258,9 +261,10 @@ fn batch_jobs(path: &Path) -> Result<Vec<BatchJob>> {
             None => None,
             Some("network") => Some(Mode::Network),
             Some("ratio") => Some(Mode::Ratio),
+            Some("ratio-filled") => Some(Mode::RatioFilled),
             Some("ulr") => Some(Mode::Ulr),
             Some(m) => bail!(
-                "{}: render {i}: mode \"{m}\": expected network, ratio or ulr",
+                "{}: render {i}: mode \"{m}\": expected network, ratio, ratio-filled or ulr",
                 path.display()
             ),
         };
@@ -303,7 +307,7 @@ pub fn render_batch(
     let size = cams.first().map(|c| (c.width, c.height));
     let need_net = jobs
         .iter()
-        .any(|j| j.mode.is_none() || j.mode == Some(Mode::Network));
+        .any(|j| j.mode.is_none_or(|m| m.needs_network()));
     let (mut r, mode) = open_renderer(&gpu, &scene, a, size, Some(used), need_net)?;
     for ((j, cam), light) in jobs.iter().zip(&cams).zip(&lights) {
         r.render(cam, light, j.mode.unwrap_or(mode), a.exposure, None)?;

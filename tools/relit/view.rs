@@ -3,7 +3,7 @@
 //!
 //! Keys: W/A/S/D move, Q/E down/up (Shift: faster), drag with the left mouse button or use the
 //! arrow keys to look; 0 original lighting, 1–9 the scene's presets; Tab selects an added light,
-//! +/− change its intensity; [ ] change α_dim; M cycles network (with weights) / ULR / ratio; P saves a screenshot;
+//! +/− change its intensity; [ ] change α_dim; M cycles network (with weights) / ULR / ratio / ratio-filled (with weights); P saves a screenshot;
 //! F11 toggles fullscreen; Esc quits. The title shows fps and per-pass GPU times.
 //! Lights (`view_lights.rs`): N adds a lamp where the window's centre looks; I/K/J/L move the
 //! selected light forward/back/left/right, U/O down/up; , and . shrink and grow it; C changes
@@ -293,12 +293,13 @@ impl App {
                 self.preset_name = "custom".into();
             }
             KeyCode::KeyM => {
-                // Network (with weights) → ULR → ratio → …
+                // Network (with weights) → ULR → ratio → ratio-filled (with weights) → …
                 self.mode = match self.mode {
                     Mode::Network => Mode::Ulr,
                     Mode::Ulr => Mode::Ratio,
-                    Mode::Ratio if self.renderer.net.is_some() => Mode::Network,
+                    Mode::Ratio if self.renderer.net.is_some() => Mode::RatioFilled,
                     Mode::Ratio => Mode::Ulr,
+                    Mode::RatioFilled => Mode::Network,
                 };
             }
             KeyCode::KeyP => {

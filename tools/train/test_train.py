@@ -249,8 +249,9 @@ class SceneScaleTest(unittest.TestCase):
     def test_evaluator_splits_covered_pixels_from_holes_and_an_untrained_ratio_net_is_ratio(self):
         """heldout.py builds the tiny set; evaluate.py scores an untrained network with base
         "ratio" (zero output conv) and one with base "none" through the engine: the first
-        renders the ratio image, so it meets the floor with equal scores; every metric is
-        there per room, lighting and mode."""
+        renders the ratio image, so it meets the floor with equal scores, and ratio-filled mode
+        is ratio on covered pixels whatever its network; every metric is there per room,
+        lighting and mode."""
         import model as M
         room_set = os.path.join(self.tmp.name, "tiny-set")
         scenegen = os.path.join(os.path.dirname(RELIT), "scenegen")
@@ -269,13 +270,16 @@ class SceneScaleTest(unittest.TestCase):
                             "--network", f"zero={nets['ratio']}", "--network", f"direct={nets['none']}"],
                            capture_output=True, text=True)
         self.assertEqual(r.returncode, 0, r.stderr)
-        self.assertIn("floor, zero: met in every room and lighting", r.stdout)
+        self.assertIn("floor, net:zero: met in every room and lighting", r.stdout)
+        self.assertIn("floor, fill:direct: met in every room and lighting", r.stdout)
         m = json.loads(read(os.path.join(out, "metrics.json")))
-        self.assertEqual(len(m["images"]), 12, "1 test view × 3 lightings × 4 modes")
+        self.assertEqual(len(m["images"]), 18, "1 test view × 3 lightings × 6 modes")
         per = {(x["lighting"], x["mode"]): x for x in m["rooms"]}
         for lt in ("eval_original", "eval_dimmed", "eval_alone"):
             z, ratio = per[(lt, "net:zero")], per[(lt, "ratio")]
             self.assertAlmostEqual(z["psnr"], ratio["psnr"], delta=0.05, msg=lt)
+            # Ratio-filled is ratio on covered pixels, whatever the network.
+            self.assertAlmostEqual(per[(lt, "fill:direct")]["psnr"], ratio["psnr"], delta=1e-6)
             for k in ("dssim", "lpips", "chroma", "sharpness"):
                 self.assertIsNotNone(ratio[k], (lt, k))
             self.assertTrue(0 < ratio["psnr"] < 60 and 0 <= ratio["holes"] < 1, lt)

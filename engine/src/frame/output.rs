@@ -82,6 +82,25 @@ pub fn reference_ratio(comp: &[[f32; 4]], irr: &[[f32; 4]], npix: usize) -> Vec<
         .collect()
 }
 
+/// CPU reference of ratio-filled mode: `ratio` where the composite `I_1` is not black, else
+/// `network` (both as [`reference_ratio`] and [`reference_network`] give them).
+pub fn reference_ratio_filled(
+    comp: &[[f32; 4]],
+    ratio: &[[f32; 3]],
+    network: &[[f32; 3]],
+) -> Vec<[f32; 3]> {
+    (0..ratio.len())
+        .map(|p| {
+            let hole = comp[p][..3].iter().all(|&c| c == 0.0);
+            if hole {
+                network[p]
+            } else {
+                ratio[p]
+            }
+        })
+        .collect()
+}
+
 /// The display value (8-bit sRGB) of a linear colour at `exposure`.
 pub fn display(c: [f32; 3], exposure: f32) -> [u8; 3] {
     c.map(|v| (srgb(v * exposure) * 255.0).round() as u8)
