@@ -22,7 +22,7 @@ with **covered** pixels (some input view sees them: the ULR composite is not bla
 - sharpness: gradient energy (squared forward differences of the tonemapped image between
   covered neighbours) relative to the truth's.
 Writes OUT/metrics.json (per image, per room × lighting × mode, means over rooms), OUT/table.md
-(the per-room table) and OUT/<room>.png (rows: view × lighting; columns: truth, each network,
+(the per-room table), OUT/compact.md (a row per room and lighting, the modes side by side) and OUT/<room>.png (rows: view × lighting; columns: truth, each network,
 ratio, ULR, the holes in red), and prints the table and the floor: each network mode ≥ ratio
 on covered pixels in every room and lighting, and ≥ ULR under the original lighting.
 """
@@ -262,6 +262,28 @@ def table(per, overall, modes, rooms):
     return "\n".join(lines)
 
 
+def compact(per, overall, networks, rooms):
+    """One row per room and lighting, the modes side by side (the README's table)."""
+    nets = [f"net:{n}" for n in networks]
+    fills = [f"fill:{n}" for n in networks]
+    cols = nets + fills + ["ratio", "ulr"]
+    side = nets + ["ratio"]
+    head = ("| room | lighting | holes % | PSNR covered: " + " / ".join(cols) + " | PSNR holes: "
+            + " / ".join(nets + ["ratio"]) + " | LPIPS: " + " / ".join(side) + " | chroma: "
+            + " / ".join(side) + " | sharpness: " + " / ".join(side) + " |")
+    lines = [head, "|" + " --- |" * 8]
+    for room in rooms + ["mean"]:
+        for lt in H.LIGHTINGS:
+            get = lambda m: per.get((room, lt, m)) if room != "mean" else overall.get((lt, m))
+            if get("ratio") is None:
+                continue
+            j = lambda ms, k, p=2: " / ".join(fmt(get(m)[k], p) for m in ms)
+            lines.append(f"| {room} | {lt[5:]} | {fmt(100 * get('ratio')['holes'])} | "
+                         f"{j(cols, 'psnr')} | {j(nets + ['ratio'], 'psnr_holes')} | "
+                         f"{j(side, 'lpips', 3)} | {j(side, 'chroma', 3)} | {j(side, 'sharpness')} |")
+    return "\n".join(lines)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--set", required=True, help="a directory built by heldout.py")
@@ -318,6 +340,8 @@ def main():
     t = table(per, overall, modes, rooms)
     with open(os.path.join(a.out, "table.md"), "w") as f:
         f.write(t + "\n")
+    with open(os.path.join(a.out, "compact.md"), "w") as f:
+        f.write(compact(per, overall, networks, rooms) + "\n")
     print(t)
     for m in network_modes(networks):
         mine = [f for f in fails if f[0] == m]

@@ -136,7 +136,8 @@ def build_room(out, name, source, o, a, bins, log):
         generate(room, source, o, bins)
         with open(os.path.join(room, "scene.json")) as f:
             tests = [v["name"] for v in json.load(f)["synthetic"]["test_views"]]
-        render = [sys.executable, os.path.join(ROOT, "tools", "groundtruth", "render.py"), room,
+        # Mitsuba lives in the system Python (tools/setup.sh), not the trainer's environment.
+        render = ["python3", os.path.join(ROOT, "tools", "groundtruth", "render.py"), room,
                   "--spp", str(a.spp)]
         run(render + ["--only", "inputs"], f"{name}: input photographs")
         run(render + ["--views", ",".join(tests), "--denoise"], f"{name}: test-view truth")

@@ -188,7 +188,7 @@ class TrainerTest(unittest.TestCase):
         sys.path.insert(0, HERE)
         import model as M
         early = os.path.join(self.tmp.name, "early.safetensors")
-        M.save(M.RelightNet(width=8), early)
+        M.save(M.RelightNet(width=8, base="ratio"), early)
         avg = os.path.join(self.tmp.name, "avg.safetensors")
         r = subprocess.run([sys.executable, os.path.join(HERE, "export.py"), run, "--out", avg,
                             "--average", early], capture_output=True, text=True)
@@ -245,6 +245,18 @@ class SceneScaleTest(unittest.TestCase):
         self.assertGreater(np.median(seen), 0.2)
         self.assertLess(np.median(errs), 0.25)
 
+
+class EvaluationTest(unittest.TestCase):
+    """The evaluation end to end on heldout.py's tiny set."""
+
+    @classmethod
+    def setUpClass(cls):
+        sys.path.insert(0, HERE)
+        cls.tmp = tempfile.TemporaryDirectory()
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
 
     def test_evaluator_splits_covered_pixels_from_holes_and_an_untrained_ratio_net_is_ratio(self):
         """heldout.py builds the tiny set; evaluate.py scores an untrained network with base
