@@ -394,7 +394,7 @@ pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
 /// README "Evaluation"). While no network meets the floor there (at or above ratio on covered
 /// pixels in every room and lighting), ratio-filled: ratio's image, with the shipped network
 /// only in the holes no input view sees (measured 2026-12-01: equal to ratio on covered pixels,
-/// +7 to +12 dB in the holes). `--mode network` or `--weights FILE` run the network alone.
+/// 1.5–14 dB better in the holes of the held-out rooms). `--mode network` or `--weights FILE` run the network alone.
 pub const DEFAULT_MODE: Mode = Mode::RatioFilled;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
