@@ -78,7 +78,16 @@ fn scene_dir(name: &str) -> PathBuf {
 #[test]
 fn readme_has_every_checked_example() {
     let kinds: Vec<String> = examples().into_iter().map(|(k, _)| k).collect();
-    assert_eq!(kinds, ["scene.json", "camera", "path", "lights.json"]);
+    assert_eq!(
+        kinds,
+        [
+            "scene.json",
+            "camera",
+            "path",
+            "lights.json",
+            "transforms.json"
+        ]
+    );
 }
 
 #[test]
@@ -122,6 +131,54 @@ fn readme_lights_json_loads_beside_a_colmap_capture() {
     let names: Vec<&str> = loaded.lights.iter().map(|l| l.name.as_str()).collect();
     assert_eq!(names, ["window", "lamp"]);
     assert_eq!(loaded.presets[0].name, "evening");
+}
+
+#[test]
+fn readme_transforms_json_loads_with_opengl_axes_flipped() {
+    let dir = common::tempdir("readme-transforms");
+    let mesh = Path::new(ROOT).join("scenes/tiny_room/mesh.ply");
+    std::fs::copy(&mesh, dir.join("mesh.ply")).unwrap();
+    std::fs::create_dir_all(dir.join("images")).unwrap();
+    for name in ["000.png", "001.png"] {
+        write_png(&dir.join("images").join(name), &RgbImage::new(64, 48), 1.0).unwrap();
+    }
+    std::fs::write(dir.join("transforms.json"), example("transforms.json")).unwrap();
+    let scene = Scene::load(&dir).unwrap();
+    assert_eq!(scene.format, SceneFormat::Transforms);
+    scene.check_images().unwrap();
+    let (a, b) = (&scene.views[0].camera, &scene.views[1].camera);
+    assert_eq!((a.fx, b.fx, b.cx, b.width), (48.0, 40.0, 32.0, 64));
+    // Both cameras look at (0, 1.2, 0): it projects to the principal point, and a point above
+    // it to a smaller image y (OpenCV's y points down).
+    for c in [a, b] {
+        let (p, z) = c.project(glam::Vec3::new(0.0, 1.2, 0.0)).unwrap();
+        assert!((p - glam::Vec2::new(32.0, 24.0)).length() < 1e-4 && (z - 2.5).abs() < 1e-5);
+        let (up, _) = c.project(glam::Vec3::new(0.0, 1.5, 0.0)).unwrap();
+        assert!(up.y < 24.0 && (up.x - 32.0).abs() < 1e-4, "{up}");
+    }
+    // Written back and read again, the cameras are the same.
+    let again = common::tempdir("readme-transforms-again");
+    write_scene(&again, &scene, SceneFormat::Transforms).unwrap();
+    let text = std::fs::read_to_string(again.join("transforms.json")).unwrap();
+    std::fs::write(dir.join("transforms.json"), text).unwrap();
+    let re = Scene::load(&dir).unwrap();
+    for (x, y) in re.views.iter().zip(&scene.views) {
+        assert!((x.camera.center() - y.camera.center()).length() < 1e-5);
+        assert!(x.camera.rotation.abs_diff_eq(y.camera.rotation, 1e-6));
+    }
+    // Distortion and a scaled transform are refused by name.
+    let t = example("transforms.json");
+    std::fs::write(
+        dir.join("transforms.json"),
+        t.replace("\"k1\": 0", "\"k1\": 0.1"),
+    )
+    .unwrap();
+    let e = Scene::load(&dir).err().unwrap().to_string();
+    assert!(e.contains("transforms.json") && e.contains("\"k1\""), "{e}");
+    let scaled = t.replace("[[1, 0, 0, 0]", "[[2, 0, 0, 0]");
+    std::fs::write(dir.join("transforms.json"), scaled).unwrap();
+    let e = Scene::load(&dir).err().unwrap().to_string();
+    assert!(e.contains("frame 0") && e.contains("not a rotation"), "{e}");
 }
 
 #[test]

@@ -5,6 +5,7 @@ mod common;
 
 use glam::Vec3;
 use relit_engine::cpu;
+use relit_engine::gpu::shaders;
 use relit_engine::gpu::{
     self, vk, Buffer, DeviceChoice, Gpu, GpuOptions, MemoryLocation, Pipeline, RayScene, Timer,
 };
@@ -243,33 +244,67 @@ fn bytemuck_u32(b: &[u8]) -> Vec<u32> {
 }
 
 #[test]
+fn every_push_struct_matches_its_shaders_block() {
+    let layouts = relit_engine::push_layouts();
+    for l in &layouts {
+        for &s in l.shaders {
+            let r = gpu::reflect(s).unwrap();
+            assert_eq!(
+                l.size, r.push_size,
+                "{}: size of {} against {s}",
+                l.ty, l.ty
+            );
+            assert_eq!(
+                l.offsets, r.push_offsets,
+                "{}: member offsets against {s}",
+                l.ty
+            );
+        }
+    }
+    // Every compute shader with push constants has its struct listed (the G-buffer's push
+    // block is one `Camera`, GpuCamera, whose size Pipeline::bind checks).
+    for &s in shaders::ALL {
+        let listed = layouts.iter().any(|l| l.shaders.contains(&s));
+        let vert_or_frag = s.name().ends_with(".vert") || s.name().ends_with(".frag");
+        if !vert_or_frag && gpu::reflect(s).unwrap().push_size > 0 {
+            assert!(listed, "{s} has push constants but no push_layout! entry");
+        }
+    }
+    // The reader finds real offsets: output.glsl's push block, whose `cam` starts past 16 bytes.
+    let r = gpu::reflect(shaders::FRAME_OUTPUT).unwrap();
+    assert_eq!(&r.push_offsets[..4], &[0, 4, 8, 12]);
+}
+
+#[test]
 fn layouts_come_from_reflection() {
-    let r = gpu::reflect("trace/rays.comp").unwrap();
+    let r = gpu::reflect(shaders::TRACE_RAYS).unwrap();
     let set0 = &r.sets[&0];
     assert_eq!(set0[&0].0, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR);
     assert_eq!(set0[&1].0, vk::DescriptorType::STORAGE_BUFFER);
     assert_eq!(set0[&2].0, vk::DescriptorType::STORAGE_BUFFER);
     assert_eq!(r.push_size, 8);
     assert_eq!(r.workgroup, Some((64, 1, 1)));
-    let f = gpu::reflect("raster/gbuffer.frag").unwrap();
+    let f = gpu::reflect(shaders::RASTER_GBUFFER_FRAG).unwrap();
     assert_eq!(f.sets[&0].len(), 2);
     assert_eq!(f.push_size, 80, "Camera push block is 5 vec4");
     // Cooperative-matrix kernels take the layout of their portable twin.
-    assert_eq!(
-        gpu::layout_source("net/conv3x3_cm.comp"),
-        "net/conv3x3.comp"
-    );
-    assert_eq!(gpu::layout_source("net/conv3x3.comp"), "net/conv3x3.comp");
-    // Every embedded shader reflects (the cooperative-matrix ones through their twin).
-    for name in gpu::shader_names() {
-        gpu::reflect(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert_eq!(gpu::layout_source(shaders::NET_CONV_CM), shaders::NET_CONV);
+    assert_eq!(gpu::layout_source(shaders::NET_CONV), shaders::NET_CONV);
+    // Every embedded shader reflects (the cooperative-matrix ones through their twin, which
+    // exists), variants from build.rs's table included.
+    assert!(shaders::ALL.contains(&shaders::NET_UPSAMPLE_ADD_LP_F32));
+    for &s in shaders::ALL {
+        gpu::reflect(s).unwrap_or_else(|e| panic!("{s}: {e}"));
+        if s.name().ends_with("_cm.comp") {
+            assert_ne!(gpu::layout_source(s), s, "{s} has no portable twin");
+        }
     }
 }
 
 #[test]
 fn pipeline_rejects_wrong_bindings() {
     let gpu = common::gpu();
-    let p = Pipeline::compute(&gpu, "trace/rays.comp").unwrap();
+    let p = Pipeline::compute(&gpu, shaders::TRACE_RAYS).unwrap();
     let b = Buffer::new(
         &gpu,
         "b",
@@ -427,13 +462,13 @@ fn gemm_portable_matches_cpu_and_coop_matrix_module_is_built() {
 
     // The cooperative-matrix module is compiled, carries the capability (OpCapability
     // CooperativeMatrixKHR = 6022), and takes its twin's layout.
-    let words = gpu::spirv("net/gemm_cm.comp").unwrap();
+    let words = gpu::spirv(shaders::NET_GEMM_CM).unwrap();
     assert!(words
         .windows(2)
         .any(|w| w[0] == (2 << 16 | 17) && w[1] == 6022));
     let (cm, portable) = (
-        gpu::reflect("net/gemm_cm.comp").unwrap(),
-        gpu::reflect("net/gemm.comp").unwrap(),
+        gpu::reflect(shaders::NET_GEMM_CM).unwrap(),
+        gpu::reflect(shaders::NET_GEMM).unwrap(),
     );
     assert_eq!(cm.sets, portable.sets);
     assert_eq!(cm.push_size, 12);

@@ -4,6 +4,7 @@
 
 mod common;
 
+use relit_engine::gpu::shaders;
 use relit_engine::gpu::{self, vk};
 use relit_engine::net::{
     backend_for, conv_reference, coop_tile, lanes_fit, upsample_add_reference, Backend, Epilogue,
@@ -271,13 +272,13 @@ fn network_weights_errors_name_the_problem() {
 fn conv_coop_matrix_module_is_built_and_selected_only_when_it_fits() {
     let gpu = common::gpu();
     // OpCapability CooperativeMatrixKHR (6022) in the module, and the portable twin's layout.
-    let words = gpu::spirv("net/conv_cm.comp").unwrap();
+    let words = gpu::spirv(shaders::NET_CONV_CM).unwrap();
     assert!(words
         .windows(2)
         .any(|w| w[0] == (2 << 16 | 17) && w[1] == 6022));
     let (cm, portable) = (
-        gpu::reflect("net/conv_cm.comp").unwrap(),
-        gpu::reflect("net/conv.comp").unwrap(),
+        gpu::reflect(shaders::NET_CONV_CM).unwrap(),
+        gpu::reflect(shaders::NET_CONV).unwrap(),
     );
     assert_eq!(cm.sets, portable.sets);
     assert_eq!(cm.push_size, portable.push_size);

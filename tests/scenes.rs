@@ -33,7 +33,13 @@ fn camera_conventions_round_trip_through_all_formats() {
             )
         })
         .collect();
-    for format in [SceneFormat::Relit, SceneFormat::Colmap, SceneFormat::Sibr] {
+    let formats = [
+        SceneFormat::Relit,
+        SceneFormat::Colmap,
+        SceneFormat::Sibr,
+        SceneFormat::Transforms,
+    ];
+    for format in formats {
         let dir = common::tempdir(&format!("roundtrip-{format:?}"));
         synth::write_room(&dir, format, &opts()).unwrap();
         let s = Scene::load(&dir).unwrap();
@@ -64,6 +70,122 @@ fn camera_conventions_round_trip_through_all_formats() {
             assert!((v.camera.center() - t.center()).length() < 1e-4);
         }
     }
+}
+
+/// COLMAP's binary encoding of a text model (cameras.txt, images.txt → .bin, as
+/// `colmap model_converter --output_type BIN` writes them), each image with `points` 2D points.
+fn colmap_text_to_binary(model: &Path, points: u64) {
+    let models = [
+        "SIMPLE_PINHOLE",
+        "PINHOLE",
+        "SIMPLE_RADIAL",
+        "RADIAL",
+        "OPENCV",
+    ];
+    let cams = std::fs::read_to_string(model.join("cameras.txt")).unwrap();
+    let lines: Vec<Vec<&str>> = cams
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| l.split_whitespace().collect())
+        .collect();
+    let mut b = (lines.len() as u64).to_le_bytes().to_vec();
+    for f in &lines {
+        b.extend(f[0].parse::<u32>().unwrap().to_le_bytes());
+        let id = models.iter().position(|m| *m == f[1]).unwrap() as u32;
+        b.extend(id.to_le_bytes());
+        for v in &f[2..4] {
+            b.extend(v.parse::<u64>().unwrap().to_le_bytes());
+        }
+        for v in &f[4..] {
+            b.extend(v.parse::<f64>().unwrap().to_le_bytes());
+        }
+    }
+    std::fs::write(model.join("cameras.bin"), b).unwrap();
+    let imgs = std::fs::read_to_string(model.join("images.txt")).unwrap();
+    let lines: Vec<Vec<&str>> = imgs
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| l.split_whitespace().collect())
+        .collect();
+    let mut b = (lines.len() as u64).to_le_bytes().to_vec();
+    for f in &lines {
+        b.extend(f[0].parse::<u32>().unwrap().to_le_bytes());
+        for v in &f[1..8] {
+            b.extend(v.parse::<f64>().unwrap().to_le_bytes());
+        }
+        b.extend(f[8].parse::<u32>().unwrap().to_le_bytes());
+        b.extend(f[9..].join(" ").as_bytes());
+        b.push(0);
+        b.extend(points.to_le_bytes());
+        for k in 0..points {
+            b.extend((k as f64).to_le_bytes());
+            b.extend(0.5f64.to_le_bytes());
+            b.extend((-1i64).to_le_bytes());
+        }
+    }
+    std::fs::write(model.join("images.bin"), b).unwrap();
+    std::fs::remove_file(model.join("cameras.txt")).unwrap();
+    std::fs::remove_file(model.join("images.txt")).unwrap();
+}
+
+#[test]
+fn colmap_binary_models_load_as_their_text_twins() {
+    let dir = room("colmap-bin", SceneFormat::Colmap);
+    let text = Scene::load(&dir).unwrap();
+    colmap_text_to_binary(&dir.join("sparse/0"), 3);
+    let bin = Scene::load(&dir).unwrap();
+    assert_eq!(bin.format, SceneFormat::Colmap);
+    assert_eq!(bin.views.len(), text.views.len());
+    for (a, b) in bin.views.iter().zip(&text.views) {
+        assert_eq!((&a.name, &a.image), (&b.name, &b.image));
+        let (ca, cb) = (&a.camera, &b.camera);
+        assert_eq!(
+            (ca.width, ca.height, ca.fx, ca.fy, ca.cx, ca.cy),
+            (cb.width, cb.height, cb.fx, cb.fy, cb.cx, cb.cy)
+        );
+        assert!(ca.rotation.abs_diff_eq(cb.rotation, 1e-6) && ca.translation == cb.translation);
+    }
+    bin.check_images().unwrap();
+
+    // A distorted model is refused with the undistorter command; zero distortion is a pinhole.
+    let dir = room("colmap-distorted", SceneFormat::Colmap);
+    let cams = dir.join("sparse/0/cameras.txt");
+    let s = std::fs::read_to_string(&cams).unwrap();
+    let opencv: Vec<String> = s
+        .lines()
+        .map(|l| match l.starts_with('#') {
+            true => l.to_string(),
+            false => l.replace(" PINHOLE ", " OPENCV ") + " 0 0 0 0",
+        })
+        .collect();
+    std::fs::write(&cams, opencv.join("\n") + "\n").unwrap();
+    let zero = Scene::load(&dir).unwrap();
+    assert_eq!(zero.views[0].camera.fx, text.views[0].camera.fx);
+    edit(&cams, " 0 0 0 0\n", " 0.1 0 0 0\n");
+    colmap_text_to_binary(&dir.join("sparse/0"), 0);
+    expect_error(&dir, "cameras.bin", "colmap image_undistorter --image_path");
+
+    // Truncated files and counts past the end name the file and the byte.
+    let dir = room("colmap-bin-bad", SceneFormat::Colmap);
+    colmap_text_to_binary(&dir.join("sparse/0"), 2);
+    let imgs = dir.join("sparse/0/images.bin");
+    let good = std::fs::read(&imgs).unwrap();
+    std::fs::write(&imgs, &good[..good.len() - 5]).unwrap();
+    expect_error(&dir, "images.bin", "a number of 2D points is 2, more than the");
+    std::fs::write(&imgs, &good[..330]).unwrap();
+    expect_error(&dir, "images.bin", "byte 328: an image NAME has no terminating NUL");
+    let mut huge = good.clone();
+    huge[..8].copy_from_slice(&u64::MAX.to_le_bytes());
+    std::fs::write(&imgs, &huge).unwrap();
+    expect_error(&dir, "images.bin", "more than the");
+    std::fs::write(&imgs, [good.as_slice(), &[7]].concat()).unwrap();
+    expect_error(&dir, "images.bin", "1 bytes after the last image");
+    std::fs::write(&imgs, &good).unwrap();
+    let cams = dir.join("sparse/0/cameras.bin");
+    let mut c = std::fs::read(&cams).unwrap();
+    c[12..16].copy_from_slice(&99u32.to_le_bytes()); // the first camera's MODEL_ID
+    std::fs::write(&cams, &c).unwrap();
+    expect_error(&dir, "cameras.bin", "model id 99");
 }
 
 #[test]

@@ -16,7 +16,7 @@ work="$HOME/.cache/relit/fuzz-corpus"
 # The targets write their inputs as files under $TMPDIR: give them a directory that goes away.
 scratch="$(mktemp -d)"
 trap 'rm -rf "$scratch"' EXIT
-for t in scene_json colmap bundler mesh_obj mesh_ply image camera_path weights; do
+for t in scene_json colmap colmap_bin transforms bundler mesh_obj mesh_ply image camera_path weights; do
   mkdir -p "$work/$t"
   log="$(mktemp)"
   if ! TMPDIR="$scratch" cargo fuzz run --fuzz-dir tools/fuzz -s none "$t" "$work/$t" "tools/fuzz/corpus/$t" -- \

@@ -3,6 +3,7 @@
 //! and the novel-view G-buffer of the frame (§4.3) are this pass. Its reference is
 //! [`crate::cpu::gbuffer`], a ray cast through the same pixel centres.
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use crate::error::Result;
@@ -93,8 +94,8 @@ impl GbufferPass {
         let pipeline = Pipeline::graphics(
             gpu,
             &GraphicsDesc {
-                vert: "raster/gbuffer.vert",
-                frag: "raster/gbuffer.frag",
+                vert: shaders::RASTER_GBUFFER_VERT,
+                frag: shaders::RASTER_GBUFFER_FRAG,
                 color_formats: &[POS_DEPTH_FORMAT, NORMAL_FORMAT, TRI_FORMAT],
                 depth_format: Some(DEPTH_FORMAT),
                 vertex_stride: 0,

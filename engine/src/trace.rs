@@ -2,6 +2,7 @@
 //! occlusion for a batch of rays. The device tests check it against [`crate::cpu`], and
 //! `relit bench rays` measures it.
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use crate::error::Result;
@@ -32,6 +33,10 @@ struct Push {
     occlusion: u32,
 }
 
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout =
+    crate::push_layout!(Push, [shaders::TRACE_RAYS], [count, occlusion]);
+
 pub struct RayCaster {
     pub pipeline: Pipeline,
 }
@@ -39,7 +44,7 @@ pub struct RayCaster {
 impl RayCaster {
     pub fn new(gpu: &Arc<Gpu>) -> Result<RayCaster> {
         Ok(RayCaster {
-            pipeline: Pipeline::compute(gpu, "trace/rays.comp")?,
+            pipeline: Pipeline::compute(gpu, shaders::TRACE_RAYS)?,
         })
     }
 

@@ -28,7 +28,7 @@ layout(set = 0, binding = 9) readonly buffer Corners { uint corner_texel[]; };
 layout(set = 0, binding = 10) writeonly buffer Out { vec4 e_add[]; };
 
 layout(push_constant, scalar) uniform Push {
-    uint view; uint width; uint height; uint samples; uint seed; uint pad0; uint pad1; uint pad2;
+    uint view; uint width; uint height; uint samples; uint seed; uvec3 pad;  // Light starts 16-byte aligned, as in Rust
     Light light;
 } pc;
 

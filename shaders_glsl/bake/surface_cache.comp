@@ -30,7 +30,7 @@ layout(set = 0, binding = 6) writeonly buffer Out { vec4 e_ind[]; };
 layout(set = 0, binding = 7) readonly buffer List { uint texel_list[]; };
 
 layout(push_constant, scalar) uniform Push {
-    uint first; uint count; uint samples; uint seed; uint bounces; uint use_list; uint pad1; uint pad2;
+    uint first; uint count; uint samples; uint seed; uint bounces; uint use_list; uvec2 pad;  // Light starts 16-byte aligned, as in Rust
     Light light;
 } pc;
 

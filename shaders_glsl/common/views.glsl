@@ -21,9 +21,9 @@ layout(set = 0, binding = VIEWS_BINDING, scalar) uniform Views {
 #define gnrm (Vec4Ref(views_addr.normals).v)
 #define images (Vec4Ref(views_addr.images).v)
 
-// Relative depth tolerance of the visibility test: the point is seen by view j when its camera
-// depth agrees with view j's depth map within this fraction (MVS meshes are only this good).
-const float DEPTH_EPS = 0.02;
+// DEPTH_EPS, the visibility test's tolerance: the point is seen by view j when its camera depth
+// agrees with view j's depth map within this fraction (MVS meshes are only this good).
+#include "constants.glsl"
 
 // Pixel index (into a view's maps) where p projects in view j when j sees p; -1 otherwise.
 int visible_pixel(uint j, vec3 p, uint W, uint H) {

@@ -12,8 +12,8 @@
 layout(set = 0, binding = 4, rgba32f) readonly uniform image2D g_pos;
 layout(set = 0, binding = 5, rgba32f) readonly uniform image2D g_nrm;
 
-// At most this many input views take part in a frame's reprojection (per-frame culling).
-const uint MAX_ACTIVE = 64u;
+// MAX_ACTIVE: at most this many input views take part in a frame's reprojection.
+#include "constants.glsl"
 
 // Rec. 709 luminance of linear RGB.
 float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }

@@ -1,7 +1,7 @@
 // The frame's output (§5.2): in network mode O = O_diffuse + O_vdep from the network's 6
 // channels (tonemapped space), inverted to linear HDR: x = ((1 + μ)^O − 1) / μ, μ = 64; in ULR
 // mode the I_1 composite (already linear); in ratio mode the I_1 composite relit by the
-// pseudo-albedo rule of eq. 5, I_1 / E_src · (E_add + E_src − E_rem) (E_src floored at 1e-4):
+// pseudo-albedo rule of eq. 5, I_1 / E_src · (E_add + E_src − E_rem) (E_src floored at E_FLOOR):
 // a diffuse relighting baseline that needs no network. Writes linear RGBA32F (EXR) and a display image:
 // exposure (a linear scale) then the sRGB transfer function, 8 bits (screen, PNG).
 // Ratio-filled mode shows ratio's image where an input view sees the surface (I_1 not black) and
@@ -36,12 +36,12 @@ const uint MODE_NETWORK = 0u;
 const uint MODE_ULR = 1u;
 const uint MODE_RATIO_FILLED = 3u;  // ratio where I_1 is not black, the network in the holes
 
-const float MU = 64.0;
+#include "constants.glsl"
 vec3 tm(vec3 v) { return log(1.0 + MU * max(v, vec3(0.0))) / log(1.0 + MU); }
 vec3 untm(vec3 y) { return (pow(vec3(1.0 + MU), max(y, vec3(0.0))) - 1.0) / MU; }
 
 // tm(I_1 / E_src · (E_add + E_src − E_rem)) from the input tensor: channels 0–2, 51–59
-// (pack4 groups 0, 12, 13, 14); E_src floored at 1e-4 / π as ratio mode floors E at 1e-4.
+// (pack4 groups 0, 12, 13, 14); E_src/π floored at E_FLOOR / π as ratio mode floors E at E_FLOOR.
 vec3 ratio_base(uint p, uint npix) {
     vec4 g0 = vec4(x[p]), g12 = vec4(x[12u * npix + p]);
     vec4 g13 = vec4(x[13u * npix + p]), g14 = vec4(x[14u * npix + p]);
@@ -49,7 +49,7 @@ vec3 ratio_base(uint p, uint npix) {
     vec3 es = untm(vec3(g12.w, g13.x, g13.y));
     vec3 ea = untm(vec3(g13.z, g13.w, g14.x));
     vec3 er = untm(g14.yzw);
-    return tm(i1 / max(es, vec3(1e-4 / 3.14159265358979)) * (ea + es - er));
+    return tm(i1 / max(es, vec3(E_FLOOR / 3.14159265358979)) * (ea + es - er));
 }
 
 float srgb(float x) {
@@ -71,12 +71,12 @@ void main() {
             vec3 od = a.xyz;
             if (pc.base == 1u) od += ratio_base(p, npix);
             vec3 tmo = max(od + vec3(a.w, b.x, b.y), vec3(0.0));
-            c = (pow(vec3(65.0), tmo) - 1.0) / 64.0;
+            c = untm(tmo);
         } else if (pc.mode == MODE_ULR) {
             c = vec3(comp[p].rgb);
         } else {
             vec3 es = irr[p].rgb;
-            c = vec3(comp[p].rgb) / max(es, vec3(1e-4)) * (irr[npix + p].rgb + es - irr[2u * npix + p].rgb);
+            c = vec3(comp[p].rgb) / max(es, vec3(E_FLOOR)) * (irr[npix + p].rgb + es - irr[2u * npix + p].rgb);
         }
     }
     vec3 eye = cam_center(pc.cam);

@@ -243,11 +243,13 @@ enum FormatArg {
     Relit,
     Colmap,
     Sibr,
+    /// instant-ngp / nerfstudio transforms.json
+    Transforms,
 }
 
 #[derive(Subcommand)]
 enum SceneCmd {
-    /// Load a scene in any format (scene.json, COLMAP text, SIBR) and print a summary, with how
+    /// Load a scene in any format (scene.json, COLMAP binary or text, SIBR, transforms.json) and print a summary, with how
     /// many input views see each original light (a warning when fewer than 3 do).
     Check {
         dir: PathBuf,
@@ -676,6 +678,7 @@ fn main() {
                 FormatArg::Relit => SceneFormat::Relit,
                 FormatArg::Colmap => SceneFormat::Colmap,
                 FormatArg::Sibr => SceneFormat::Sibr,
+                FormatArg::Transforms => SceneFormat::Transforms,
             };
             let o = scene::synth::SynthOptions {
                 views: *views,

@@ -38,6 +38,7 @@ import torch
 import torch.nn.functional as F
 
 import heldout as H
+import samples as S
 
 GLOSSY = 0.02
 # The floor's tolerance, dB: images equal but for float rounding (an untrained ratio-base
@@ -45,11 +46,10 @@ GLOSSY = 0.02
 FLOOR_TOL = 0.01
 # Our mode names: "net:NAME" (the network NAME), "fill:NAME" (ratio, its holes filled by NAME).
 ENGINE_MODE = {"net": "network", "fill": "ratio-filled"}
-MU = 64.0
 
 
 def tm(x):
-    return (np.log1p(MU * np.maximum(x, 0.0)) / np.log1p(MU)).astype(np.float32)
+    return S.tonemap(x).astype(np.float32)
 
 
 def read_exr(path):

@@ -31,11 +31,12 @@ import torch.nn.functional as F
 DEFAULT_CONFIG = dict(in_channels=66, width=66, trunk_blocks=4, levels=5, level_blocks=4,
                       tail_blocks=2, out_channels=6, base="none")
 BASES = ("none", "ratio")
-MU = 64.0
+from constants import E_FLOOR as _E_FLOOR, MU
+
 # Input channels (engine/src/frame/features.rs): I_1, E_src/π, E_add/π, E_rem/π, tonemapped.
 I1, E_SRC, E_ADD, E_REM = slice(0, 3), slice(51, 54), slice(54, 57), slice(57, 60)
-# Ratio mode's floor on E_src (output.glsl: 1e-4 on E, here on E/π).
-E_FLOOR = 1e-4 / math.pi
+# Ratio mode's floor on E_src (output.glsl: E_FLOOR on E, here on E/π).
+ES_FLOOR = _E_FLOOR / math.pi
 
 
 def tm(x):
@@ -51,7 +52,7 @@ def ratio_base(x):
     """tm of eq. 5's ratio image, I_1 / E_src · (E_add + E_src − E_rem), from the input tensor
     (N×66×H×W); zero where no view covers the pixel (I_1 = 0)."""
     i1, es, ea, er = (untm(x[:, c]) for c in (I1, E_SRC, E_ADD, E_REM))
-    return tm(i1 / es.clamp(min=E_FLOOR) * (ea + es - er))
+    return tm(i1 / es.clamp(min=ES_FLOOR) * (ea + es - er))
 
 
 class FixupBlock(nn.Module):

@@ -16,7 +16,7 @@ import sys
 
 import numpy as np
 
-MU = 64.0
+from constants import MU
 DTYPES = {"F32": np.float32, "F16": np.float16, "I64": np.int64, "I32": np.int32}
 
 

@@ -54,10 +54,11 @@ class TrainerTest(unittest.TestCase):
 
     def test_resume_is_bit_for_bit(self):
         whole, split = self.run_dir("whole"), self.run_dir("split")
-        self.assertEqual(train(self.data, whole, "--steps", "6").returncode, 0)
-        r = train(self.data, split, "--steps", "3")
+        # With a warm-up longer than the first half: the rate depends on the step, not the run.
+        self.assertEqual(train(self.data, whole, "--steps", "6", "--warmup", "4").returncode, 0)
+        r = train(self.data, split, "--steps", "3", "--warmup", "4")
         self.assertEqual(r.returncode, 0, r.stderr)
-        r = train(self.data, split, "--steps", "6", "--resume")
+        r = train(self.data, split, "--steps", "6", "--resume", "--warmup", "4")
         self.assertEqual(r.returncode, 0, r.stderr)
         a = read(os.path.join(whole, "weights.safetensors"), "rb")
         b = read(os.path.join(split, "weights.safetensors"), "rb")
@@ -66,7 +67,21 @@ class TrainerTest(unittest.TestCase):
         self.assertEqual(la, lb)
         self.assertEqual([r["step"] for r in la], list(range(1, 7)))
         self.assertTrue(any("val" in r and r["val"] is not None for r in la), "no validation loss")
+        self.assertTrue(any(r.get("val_psnr") and r.get("ratio_psnr") for r in la), "no floor")
         self.assertTrue(os.path.exists(os.path.join(whole, "curves.png")))
+
+    def test_validation_scores_an_untrained_ratio_net_as_the_ratio_image(self):
+        sys.path.insert(0, HERE)
+        import argparse
+        import model as M
+        import train as T
+        net = M.RelightNet(width=8, trunk_blocks=1, level_blocks=1, tail_blocks=1, base="ratio")
+        v = T.validate(net, T.load_split(os.path.join(self.data, "val")), 0, "cpu", None, 0.0)
+        self.assertIsNotNone(v["val_psnr"])
+        self.assertAlmostEqual(v["val_psnr"], v["ratio_psnr"], places=5)
+        a = argparse.Namespace(lr=1e-4, warmup=4)
+        for step, lr in enumerate([2.5e-5, 5e-5, 7.5e-5, 1e-4, 1e-4]):
+            self.assertAlmostEqual(T.learning_rate(a, step), lr, places=12)
 
     def test_a_signal_stops_the_run_at_a_checkpoint_that_resumes(self):
         run = self.run_dir("signal")

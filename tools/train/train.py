@@ -41,11 +41,7 @@ import multiview as MV  # noqa: E402
 import perceptual as P  # noqa: E402
 import samples as S  # noqa: E402
 
-MU = 64.0
-
-
-def tonemap(x):
-    return torch.log1p(MU * x.clamp(min=0)) / torch.log1p(torch.tensor(MU))
+tonemap = M.tm
 
 
 def load_split(folder):
@@ -90,19 +86,42 @@ def losses(out, d, t, lambda_vdep=10.0, vgg=None, lambda_vgg=0.0):
     return loss
 
 
+def covered_psnr(img, t, x):
+    """log-PSNR of a tonemapped image on the pixels an input view covers (I_1 not black), as
+    evaluate.py scores them; None when no pixel is covered."""
+    covered = (x[:, M.I1] != 0).any(1, keepdim=True).expand_as(t)
+    if not covered.any():
+        return None
+    mse = ((img.clamp(min=0) - t) ** 2)[covered].mean().item()
+    return 10 * np.log10(1.0 / max(mse, 1e-12))
+
+
 def validate(net, val, seed, device, vgg, lambda_vgg):
-    """Mean loss over the validation samples, each under three fixed lightings."""
+    """Mean loss over the validation samples, each under three fixed lightings, and the mean
+    covered-pixel log-PSNR of the network's image and of the ratio image (the floor)."""
     if not val:
         return None
     rng = random.Random(seed)
-    total, n = 0.0, 0
+    total, n, ours, ratio = 0.0, 0, [], []
     with torch.no_grad():
         for s in val:
             for _ in range(3):
                 x, d, t = batch(s, *random_lighting(s, rng), None, rng, device)
-                total += losses(net(x), d, t, vgg=vgg, lambda_vgg=lambda_vgg).item()
+                out = net(x)
+                total += losses(out, d, t, vgg=vgg, lambda_vgg=lambda_vgg).item()
                 n += 1
-    return total / n
+                p, r = covered_psnr(out[:, :3] + out[:, 3:6], t, x), covered_psnr(M.ratio_base(x), t, x)
+                if p is not None:
+                    ours.append(p)
+                    ratio.append(r)
+    return {"val": total / n, "val_psnr": float(np.mean(ours)) if ours else None,
+            "ratio_psnr": float(np.mean(ratio)) if ratio else None}
+
+
+def learning_rate(a, step):
+    """--lr, ramped up linearly over the first --warmup steps: a fresh RMSProp's first steps are
+    ~10× the rate (its running mean of g² starts at zero), enough to jolt a pretrained network."""
+    return a.lr * min(1.0, (step + 1) / a.warmup) if a.warmup > 0 else a.lr
 
 
 def save_atomic(obj, path):
@@ -183,6 +202,8 @@ def parse_args():
     ap.add_argument("--steps", type=int, default=1000, help="train until this step")
     ap.add_argument("--crop", type=int, default=128)
     ap.add_argument("--lr", type=float, default=1e-4)
+    ap.add_argument("--warmup", type=int, default=0, metavar="N",
+                    help="ramp the learning rate up linearly over steps 1..N (fine-tuning)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--val-every", type=int, default=200)
     ap.add_argument("--checkpoint-minutes", type=float, default=5.0)
@@ -415,6 +436,9 @@ def main():
     while step < a.steps:
         i = rng.randrange(len(train))
         row = {"step": step + 1}
+        for o in (opt, opt_d) if opt_d is not None else (opt,):
+            for g in o.param_groups:
+                g["lr"] = learning_rate(a, step)
         loss, fake, real = step_loss(a, net, disc, vgg, train, nbr, warps, i,
                                      random_lighting(train[i], rng), rng, row)
         opt.zero_grad()
@@ -431,9 +455,11 @@ def main():
         step += 1
         row["loss"] = loss.item()
         if lead and (step % a.val_every == 0 or step == a.steps):
-            row["val"] = validate(net, val, a.seed, a.device, vgg, a.vgg)
+            v = validate(net, val, a.seed, a.device, vgg, a.vgg)
+            if v is not None:
+                row.update(v)
             rate = (time.time() - t0) / (step - start)
-            print(f"step {step}/{a.steps}: loss {row['loss']:.4f}, validation {row['val']}, "
+            print(f"step {step}/{a.steps}: loss {row['loss']:.4f}, validation {v}, "
                   f"{rate:.2f} s/step, ETA {(a.steps - step) * rate / 60:.0f} min", flush=True)
         if lead:
             log.write(json.dumps(row) + "\n")

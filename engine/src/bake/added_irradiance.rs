@@ -1,6 +1,7 @@
 //! Added irradiance `E_add_i,l` (§4.1.3): `shaders_glsl/bake/added_irradiance.comp`. One map per
 //! view and user light, so that light intensities mix linearly at run time.
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -160,6 +161,13 @@ struct Push {
     light: GpuLight,
 }
 
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::BAKE_ADDED_IRRADIANCE],
+    [view, width, height, samples, seed, pad, light]
+);
+
 pub struct AddedIrradiance {
     pipeline: Pipeline,
 }
@@ -178,7 +186,7 @@ pub struct AddedParams {
 impl AddedIrradiance {
     pub fn new(gpu: &Arc<Gpu>) -> Result<AddedIrradiance> {
         Ok(AddedIrradiance {
-            pipeline: Pipeline::compute(gpu, "bake/added_irradiance.comp")?,
+            pipeline: Pipeline::compute(gpu, shaders::BAKE_ADDED_IRRADIANCE)?,
         })
     }
 

@@ -1,6 +1,7 @@
 //! Albedo mesh `a(v)` (§4.1.2): `shaders_glsl/bake/albedo_mesh.comp`. `a = π·I/E_src`: the
 //! paper's `I/E` with E as irradiance in W/m² (a Lambertian surface has I = ρ/π·E).
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -20,6 +21,13 @@ struct Push {
     nlights: u32,
 }
 
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::BAKE_ALBEDO_MESH],
+    [nverts, width, height, nviews, nlights]
+);
+
 pub struct AlbedoMesh {
     pipeline: Pipeline,
     lights: Buffer,
@@ -31,7 +39,7 @@ impl AlbedoMesh {
     pub fn new(gpu: &Arc<Gpu>, lights: &[Light]) -> Result<AlbedoMesh> {
         let (lights, nlights) = super::source_irradiance::lights_buffer(gpu, lights)?;
         Ok(AlbedoMesh {
-            pipeline: Pipeline::compute(gpu, "bake/albedo_mesh.comp")?,
+            pipeline: Pipeline::compute(gpu, shaders::BAKE_ALBEDO_MESH)?,
             lights,
             nlights,
         })

@@ -1,5 +1,6 @@
 //! Edge-aware denoising of irradiance maps (§4.1.1): `shaders_glsl/bake/denoise.comp`.
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -42,6 +43,22 @@ struct Push {
     with_base: u32,
 }
 
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::BAKE_DENOISE],
+    [
+        view,
+        width,
+        height,
+        radius,
+        sigma_px,
+        sigma_depth,
+        normal_power,
+        with_base
+    ]
+);
+
 pub struct Denoise {
     pipeline: Pipeline,
 }
@@ -49,7 +66,7 @@ pub struct Denoise {
 impl Denoise {
     pub fn new(gpu: &Arc<Gpu>) -> Result<Denoise> {
         Ok(Denoise {
-            pipeline: Pipeline::compute(gpu, "bake/denoise.comp")?,
+            pipeline: Pipeline::compute(gpu, shaders::BAKE_DENOISE)?,
         })
     }
 

@@ -1,5 +1,6 @@
 //! Source mirror images `M_src_i` (§4.2.1): `shaders_glsl/bake/mirror.comp`.
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -18,6 +19,10 @@ struct Push {
     nviews: u32,
 }
 
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout =
+    crate::push_layout!(Push, [shaders::BAKE_MIRROR], [view, width, height, nviews]);
+
 pub struct Mirror {
     pipeline: Pipeline,
 }
@@ -25,7 +30,7 @@ pub struct Mirror {
 impl Mirror {
     pub fn new(gpu: &Arc<Gpu>) -> Result<Mirror> {
         Ok(Mirror {
-            pipeline: Pipeline::compute(gpu, "bake/mirror.comp")?,
+            pipeline: Pipeline::compute(gpu, shaders::BAKE_MIRROR)?,
         })
     }
 

@@ -6,6 +6,7 @@
 //! E_src by 2.5% (more where more rays went unseen: ceilings, table undersides are darker than
 //! the average ray).
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -28,6 +29,13 @@ struct Push {
     nlights: u32,
 }
 
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::BAKE_RADIANCE_MESH],
+    [nverts, width, height, nviews, nlights]
+);
+
 pub struct RadianceMesh {
     pipeline: Pipeline,
     lights: Buffer,
@@ -39,7 +47,7 @@ impl RadianceMesh {
     pub fn new(gpu: &Arc<Gpu>, lights: &[Light]) -> Result<RadianceMesh> {
         let (lights, nlights) = lights_buffer(gpu, lights)?;
         Ok(RadianceMesh {
-            pipeline: Pipeline::compute(gpu, "bake/radiance_mesh.comp")?,
+            pipeline: Pipeline::compute(gpu, shaders::BAKE_RADIANCE_MESH)?,
             lights,
             nlights,
         })

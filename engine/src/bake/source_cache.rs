@@ -9,6 +9,7 @@
 //! Only for scenes that declare their original lights: without them the direct light arrives
 //! through the views' pixels as well, and texels would blur its shadows.
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -107,7 +108,7 @@ pub struct SourceCache {
 impl SourceCache {
     pub fn new(gpu: &Arc<Gpu>) -> Result<SourceCache> {
         Ok(SourceCache {
-            pipeline: Pipeline::compute(gpu, "bake/source_cache.comp")?,
+            pipeline: Pipeline::compute(gpu, shaders::BAKE_SOURCE_CACHE)?,
         })
     }
 

@@ -2,6 +2,7 @@
 //! Declared original lights give their direct part by next-event estimation (the shader's
 //! header says how it joins the views' indirect part without counting light twice).
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -52,6 +53,17 @@ pub(super) struct Push {
     pub parts: u32,
 }
 
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [
+        shaders::BAKE_SOURCE_IRRADIANCE,
+        shaders::BAKE_SOURCE_IRRADIANCE_VERTICES,
+        shaders::BAKE_SOURCE_CACHE
+    ],
+    [view, width, height, nviews, samples, seed, nlights, count, parts]
+);
+
 /// Random streams of vertices start past every pixel's (`VERTEX_KEY` in the shader).
 const VERTEX_KEY: u32 = 0x8000_0000;
 
@@ -98,8 +110,8 @@ impl SourceIrradiance {
     pub fn new(gpu: &Arc<Gpu>, lights: &[Light]) -> Result<SourceIrradiance> {
         let (lights, nlights) = lights_buffer(gpu, lights)?;
         Ok(SourceIrradiance {
-            pipeline: Pipeline::compute(gpu, "bake/source_irradiance.comp")?,
-            vertices: Pipeline::compute(gpu, "bake/source_irradiance_vertices.comp")?,
+            pipeline: Pipeline::compute(gpu, shaders::BAKE_SOURCE_IRRADIANCE)?,
+            vertices: Pipeline::compute(gpu, shaders::BAKE_SOURCE_IRRADIANCE_VERTICES)?,
             lights,
             nlights,
         })

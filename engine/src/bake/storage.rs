@@ -3,6 +3,7 @@
 //! network's tonemapping, §5.2) against the half-float original that decides whether the
 //! compression is good enough. BC6H holds 1 byte per pixel against RGBA16F's 8.
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use half::f16;
@@ -52,10 +53,7 @@ pub enum Bc6hQuality {
     Slow,
 }
 
-/// log(1 + μx) / log(1 + μ), μ = 64 (§5.2).
-pub fn tonemap(x: f32) -> f32 {
-    (1.0 + 64.0 * x.max(0.0)).ln() / 65f32.ln()
-}
+pub use crate::constants::tonemap;
 
 /// PSNR (dB) between two RGB images in the tonemapped space.
 pub fn log_psnr(a: &[[f32; 4]], b: &[[f32; 4]]) -> f64 {
@@ -169,6 +167,10 @@ struct Push {
     layer: u32,
 }
 
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout =
+    crate::push_layout!(Push, [shaders::GPU_FETCH], [width, height, layer]);
+
 /// Reads a layer of a sampled texture back through the sampler (`gpu/fetch.comp`).
 pub struct Fetch {
     pipeline: Pipeline,
@@ -178,7 +180,7 @@ pub struct Fetch {
 impl Fetch {
     pub fn new(gpu: &Arc<Gpu>) -> Result<Fetch> {
         Ok(Fetch {
-            pipeline: Pipeline::compute(gpu, "gpu/fetch.comp")?,
+            pipeline: Pipeline::compute(gpu, shaders::GPU_FETCH)?,
             sampler: Sampler::linear(gpu)?,
         })
     }

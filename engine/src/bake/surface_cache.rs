@@ -4,6 +4,7 @@
 //! looked up by every view's E_add map (`added_irradiance.comp`). Irradiance does not depend on
 //! the view, so this replaces tracing the same surface once per pixel of every view that sees it.
 
+use crate::gpu::shaders;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -172,6 +173,13 @@ struct Push {
     light: GpuLight,
 }
 
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::BAKE_SURFACE_CACHE],
+    [first, count, samples, seed, bounces, use_list, pad, light]
+);
+
 /// Texels per dispatch: a chunk is a few seconds on lavapipe, so progress shows as it goes.
 pub const CHUNK: u32 = 8192;
 
@@ -192,7 +200,7 @@ pub enum Texels<'a> {
 impl SurfaceCache {
     pub fn new(gpu: &Arc<Gpu>) -> Result<SurfaceCache> {
         Ok(SurfaceCache {
-            pipeline: Pipeline::compute(gpu, "bake/surface_cache.comp")?,
+            pipeline: Pipeline::compute(gpu, shaders::BAKE_SURFACE_CACHE)?,
         })
     }
 

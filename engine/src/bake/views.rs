@@ -107,8 +107,7 @@ impl ViewData {
     }
 }
 
-/// Keep in step with `DEPTH_EPS` in views.glsl.
-pub const DEPTH_EPS: f32 = 0.02;
+pub use crate::constants::DEPTH_EPS;
 
 /// The views' buffers on the GPU. Shaders read them through device addresses (views.glsl), which
 /// one small uniform buffer, `addresses`, holds.

@@ -2,6 +2,7 @@
 //! order below is the contract between the engine, `relit dump` and the trainer.
 
 use super::RefInputs;
+use crate::gpu::shaders;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -11,8 +12,15 @@ pub struct Push {
     pub height: u32,
 }
 
-pub const SHADER_F16: &str = "frame/features.comp";
-pub const SHADER_F32: &str = "frame/features_f32.comp";
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::FRAME_FEATURES, shaders::FRAME_FEATURES_F32],
+    [eye, width, height]
+);
+
+pub const SHADER_F16: crate::gpu::Shader = shaders::FRAME_FEATURES;
+pub const SHADER_F32: crate::gpu::Shader = shaders::FRAME_FEATURES_F32;
 
 /// Names of the 66 input channels, in order.
 pub fn channel_names() -> Vec<String> {
@@ -41,15 +49,7 @@ pub fn channel_names() -> Vec<String> {
     v
 }
 
-/// log(1 + μx) / log(1 + μ), μ = 64 (§5.2).
-pub fn tonemap(x: f32) -> f32 {
-    (1.0 + 64.0 * x.max(0.0)).ln() / 65f32.ln()
-}
-
-/// Inverse of [`tonemap`].
-pub fn untonemap(y: f32) -> f32 {
-    (65f32.powf(y.max(0.0)) - 1.0) / 64.0
-}
+pub use crate::constants::{tonemap, untonemap};
 
 #[allow(clippy::needless_range_loop)]
 /// CPU reference: planar CHW, 66 channels, from the pass outputs (composites, irradiance and

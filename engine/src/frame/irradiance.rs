@@ -1,5 +1,6 @@
 //! Irradiance composites `E_src`, `E_add`, `E_rem` (§4.3.3): `shaders_glsl/frame/irradiance.comp`.
 
+use crate::gpu::shaders;
 use glam::Vec3;
 
 use super::maps::sample_bilinear;
@@ -22,7 +23,14 @@ pub struct Push {
     pub live_mask: u32,
 }
 
-pub const SHADER: &str = "frame/irradiance.comp";
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::FRAME_IRRADIANCE],
+    [eye, width, height, nactive, view_w, view_h, nviews, nlights, alpha_dim, nlive, live_mask]
+);
+
+pub const SHADER: crate::gpu::Shader = shaders::FRAME_IRRADIANCE;
 pub const PLANES: usize = 3;
 
 /// CPU reference: 3 planes (E_src, E_add, E_rem) of `width × height` vec4.

@@ -28,9 +28,9 @@ use crate::net::{Network, Storage, Tensor, INPUT_CHANNELS};
 use crate::raster::{Gbuffer, GbufferPass};
 use crate::scene::{image::load_rgb, Camera, Light, Scene};
 
-/// At most this many input views take part in one frame (`MAX_ACTIVE` in frame.glsl): the views
-/// whose cameras are nearest the novel camera.
-pub const MAX_ACTIVE: usize = 64;
+/// At most this many input views take part in one frame (`constants.table`): the views whose
+/// cameras are nearest the novel camera.
+pub const MAX_ACTIVE: usize = crate::constants::MAX_ACTIVE as usize;
 
 /// The user's lighting: one intensity per added light (the scene's non-original lights, in
 /// scene order) and α_dim (§4.1.4: 0 keeps the original lighting, 1 removes it).

@@ -3,9 +3,11 @@
 //! `I_1` composite; ratio mode relights it with eq. 5's pseudo-albedo rule. Linear HDR for EXR, exposure + sRGB in 8 bits for screens and PNG.
 //! In every mode, lit added lights in front of the surface are drawn (`frame/emitters.glsl`).
 
+use crate::gpu::shaders;
 use glam::Vec3;
 
 use crate::bake::GpuLight;
+use crate::constants::E_FLOOR;
 use crate::scene::{Camera, GpuCamera};
 
 #[repr(C)]
@@ -21,8 +23,15 @@ pub struct Push {
     pub base: u32,
 }
 
-pub const SHADER_F16: &str = "frame/output.comp";
-pub const SHADER_F32: &str = "frame/output_f32.comp";
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::FRAME_OUTPUT, shaders::FRAME_OUTPUT_F32],
+    [width, height, mode, exposure, cam, nlights, base]
+);
+
+pub const SHADER_F16: crate::gpu::Shader = shaders::FRAME_OUTPUT;
+pub const SHADER_F32: crate::gpu::Shader = shaders::FRAME_OUTPUT_F32;
 
 /// sRGB transfer function of a linear value, clamped to [0, 1].
 pub fn srgb(x: f32) -> f32 {
@@ -59,12 +68,12 @@ pub fn reference_network(
 }
 
 /// tm of eq. 5's ratio image at pixel `p` from the network input (planar CHW): I_1 (channels
-/// 0–2) / E_src · (E_add + E_src − E_rem) (51–59, stored /π), E_src/π floored at 1e-4/π —
+/// 0–2) / E_src · (E_add + E_src − E_rem) (51–59, stored /π), E_src/π floored at E_FLOOR/π —
 /// `model.py`'s `ratio_base` and `output.glsl`'s.
 pub fn ratio_base(x: &[f32], npix: usize, p: usize) -> [f32; 3] {
     use super::features::{tonemap, untonemap};
     let ch = |c: usize| untonemap(x[c * npix + p]);
-    let floor = 1e-4 / std::f32::consts::PI;
+    let floor = E_FLOOR / std::f32::consts::PI;
     [0, 1, 2].map(|k| {
         let (i1, es, ea, er) = (ch(k), ch(51 + k), ch(54 + k), ch(57 + k));
         tonemap(i1 / es.max(floor) * (ea + es - er))
@@ -72,12 +81,12 @@ pub fn ratio_base(x: &[f32], npix: usize, p: usize) -> [f32; 3] {
 }
 
 /// CPU reference of ratio mode from the composites and irradiance planes (as the passes wrote
-/// them): `I_1 / max(E_src, 1e-4) · (E_add + E_src − E_rem)`.
+/// them): `I_1 / max(E_src, E_FLOOR) · (E_add + E_src − E_rem)`.
 pub fn reference_ratio(comp: &[[f32; 4]], irr: &[[f32; 4]], npix: usize) -> Vec<[f32; 3]> {
     (0..npix)
         .map(|p| {
             let (i, es, ea, er) = (comp[p], irr[p], irr[npix + p], irr[2 * npix + p]);
-            [0, 1, 2].map(|k| i[k] / es[k].max(1e-4) * (ea[k] + es[k] - er[k]))
+            [0, 1, 2].map(|k| i[k] / es[k].max(E_FLOOR) * (ea[k] + es[k] - er[k]))
         })
         .collect()
 }

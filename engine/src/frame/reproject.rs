@@ -1,5 +1,6 @@
 //! Reprojected composites `I_1..8`, `M_src_1..8` (§4.3.1–4.3.2): `shaders_glsl/frame/reproject.comp`.
 
+use crate::gpu::shaders;
 use glam::Vec3;
 
 use super::maps::sample_bilinear;
@@ -17,7 +18,14 @@ pub struct Push {
     pub view_h: u32,
 }
 
-pub const SHADER: &str = "frame/reproject.comp";
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::FRAME_REPROJECT],
+    [eye, width, height, nactive, view_w, view_h]
+);
+
+pub const SHADER: crate::gpu::Shader = shaders::FRAME_REPROJECT;
 /// Planes of the output: I_1..8 then M_src_1..8.
 pub const PLANES: usize = 16;
 

@@ -1,5 +1,6 @@
 //! Target mirror image `M_tgt` (§4.2.2, eq. 5): `shaders_glsl/frame/target_mirror.comp`.
 
+use crate::gpu::shaders;
 use glam::Vec3;
 
 use super::RefInputs;
@@ -21,7 +22,14 @@ pub struct Push {
     pub live_mask: u32,
 }
 
-pub const SHADER: &str = "frame/target_mirror.comp";
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::FRAME_TARGET_MIRROR],
+    [eye, width, height, view_w, view_h, nviews, nlights, alpha_dim, exclude, nlive, live_mask]
+);
+
+pub const SHADER: crate::gpu::Shader = shaders::FRAME_TARGET_MIRROR;
 
 /// CPU reference: vec4 per pixel (rgb, reflected distance; a lit added light met first gives
 /// its radiance).

@@ -3,6 +3,7 @@
 //! `relit bench gather` can show what a driver makes of each (on Mesa 25.0's llvmpipe: a loop
 //! over the lanes with bounds checks, or one masked gather).
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use super::{bytes_of, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, Timer};
@@ -25,6 +26,13 @@ struct Push {
     count: u32,
     mask: u32,
 }
+
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::GPU_GATHER_SSBO, shaders::GPU_GATHER_BDA],
+    [table_addr, count, mask]
+);
 
 /// The table index of load `k` of invocation `i` (`gather_index` in gather.glsl).
 pub fn index(i: u32, k: u32, mask: u32) -> u32 {
@@ -73,8 +81,8 @@ impl GatherProbe {
         }
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         Ok(GatherProbe {
-            ssbo: Pipeline::compute(gpu, "gpu/gather_ssbo.comp")?,
-            bda: Pipeline::compute(gpu, "gpu/gather_bda.comp")?,
+            ssbo: Pipeline::compute(gpu, shaders::GPU_GATHER_SSBO)?,
+            bda: Pipeline::compute(gpu, shaders::GPU_GATHER_BDA)?,
             table: Buffer::from_slice(
                 gpu,
                 "gather table",

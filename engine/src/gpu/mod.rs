@@ -15,7 +15,8 @@ pub use device::{
 };
 pub use memory::{full_barrier, image_barrier, texel_size, Buffer, Image};
 pub use pipeline::{
-    layout_source, reflect, shader_names, spirv, Bind, GraphicsDesc, Pipeline, Reflected, Sampler,
+    layout_source, reflect, shaders, spirv, Bind, GraphicsDesc, Pipeline, PushLayout, Reflected,
+    Sampler, Shader,
 };
 pub use timer::Timer;
 

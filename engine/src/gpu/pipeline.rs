@@ -12,34 +12,51 @@ use super::memory::Buffer;
 use super::Gpu;
 use crate::error::{Error, Result, VkContext};
 
-mod embedded {
-    include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
+/// An embedded shader, named by its path below `shaders_glsl/` or by its row in build.rs's
+/// variant table. Only the generated constants of [`shaders`] make one, so a misspelt shader
+/// fails the build.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Shader(&'static str);
+
+impl Shader {
+    pub fn name(self) -> &'static str {
+        self.0
+    }
 }
 
-/// Names of all embedded shaders (their paths below `shaders_glsl/`).
-pub fn shader_names() -> impl Iterator<Item = &'static str> {
-    embedded::SHADERS.iter().map(|(n, _)| *n)
+impl std::fmt::Display for Shader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.0)
+    }
 }
+
+// `pub mod shaders` (one constant per shader, and `ALL`) and the SPIR-V table.
+include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 
 /// The SPIR-V of an embedded shader, as words.
-pub fn spirv(name: &str) -> Result<Vec<u32>> {
-    let bytes = embedded::SHADERS
+pub fn spirv(shader: Shader) -> Result<Vec<u32>> {
+    let bytes = SPIRV
         .iter()
-        .find(|(n, _)| *n == name)
+        .find(|(s, _)| *s == shader)
         .map(|(_, b)| *b)
-        .ok_or_else(|| Error::Other(format!("no embedded shader named {name}")))?;
+        .ok_or_else(|| Error::Other(format!("no embedded shader named {shader}")))?;
     ash::util::read_spv(&mut std::io::Cursor::new(bytes))
-        .map_err(|e| Error::Other(format!("shader {name}: bad SPIR-V: {e}")))
+        .map_err(|e| Error::Other(format!("shader {shader}: bad SPIR-V: {e}")))
 }
 
-/// The shader whose reflection gives `name`'s layout. No reflection crate reads
+/// The shader whose reflection gives `shader`'s layout. No reflection crate reads
 /// cooperative-matrix modules yet, so a `*_cm.comp` kernel takes the layout of its portable twin
 /// (`*.comp`), which by construction declares the same bindings.
-pub fn layout_source(name: &str) -> String {
-    match name.strip_suffix("_cm.comp") {
-        Some(stem) => format!("{stem}.comp"),
-        None => name.to_string(),
-    }
+pub fn layout_source(shader: Shader) -> Shader {
+    let Some(stem) = shader.0.strip_suffix("_cm.comp") else {
+        return shader;
+    };
+    let twin = format!("{stem}.comp");
+    shaders::ALL
+        .iter()
+        .copied()
+        .find(|s| s.0 == twin)
+        .unwrap_or(shader)
 }
 
 /// What reflection says a shader stage uses.
@@ -49,12 +66,78 @@ pub struct Reflected {
     pub sets: BTreeMap<u32, BTreeMap<u32, (vk::DescriptorType, u32)>>,
     /// Push-constant block size in bytes (0 when none).
     pub push_size: u32,
+    /// Byte offset of each member of the push-constant block, in member order.
+    pub push_offsets: Vec<u32>,
     pub workgroup: Option<(u32, u32, u32)>,
 }
 
-pub fn reflect(name: &str) -> Result<Reflected> {
-    let src = layout_source(name);
-    let words = spirv(&src)?;
+/// A `#[repr(C)]` push-constant struct as Rust lays it out ([`crate::push_layout!`]), for a test
+/// to hold against its shader's reflected block.
+pub struct PushLayout {
+    /// The shaders that take this struct as their push constants.
+    pub shaders: &'static [Shader],
+    pub ty: &'static str,
+    pub size: u32,
+    pub offsets: &'static [u32],
+}
+
+/// The [`PushLayout`] of `$ty`, whose fields `$f` are, in order, the members of the push block of
+/// each shader `$s` (explicit padding fields left out; a nested struct's fields as `a.b`).
+#[macro_export]
+macro_rules! push_layout {
+    ($ty:ty, [$($s:expr),+ $(,)?], [$($($f:ident).+),* $(,)?]) => {
+        $crate::gpu::PushLayout {
+            shaders: &[$($s),+],
+            ty: stringify!($ty),
+            size: std::mem::size_of::<$ty>() as u32,
+            offsets: &[$(std::mem::offset_of!($ty, $($f).+) as u32),*],
+        }
+    };
+}
+
+/// Member offsets of the push-constant block, read from the SPIR-V's decorations (rspirv-reflect
+/// gives only the block's range): the PushConstant variable → its pointer type → the struct's
+/// `OpMemberDecorate … Offset`.
+fn push_member_offsets(words: &[u32]) -> Vec<u32> {
+    const TYPE_POINTER: u32 = 32;
+    const VARIABLE: u32 = 59;
+    const MEMBER_DECORATE: u32 = 72;
+    const OFFSET: u32 = 35;
+    const PUSH_CONSTANT: u32 = 9;
+    let mut insts = Vec::new();
+    let mut i = 5; // the module header
+    while i < words.len() {
+        let (n, op) = ((words[i] >> 16) as usize, words[i] & 0xffff);
+        if n == 0 || i + n > words.len() {
+            break;
+        }
+        insts.push((op, &words[i + 1..i + n]));
+        i += n;
+    }
+    let find = |op: u32, f: &dyn Fn(&[u32]) -> bool| {
+        insts
+            .iter()
+            .find(|(o, a)| *o == op && f(a))
+            .map(|(_, a)| *a)
+    };
+    let Some(var) = find(VARIABLE, &|a| a.len() >= 3 && a[2] == PUSH_CONSTANT) else {
+        return Vec::new();
+    };
+    let Some(ptr) = find(TYPE_POINTER, &|a| a.len() == 3 && a[0] == var[0]) else {
+        return Vec::new();
+    };
+    let mut members: Vec<(u32, u32)> = insts
+        .iter()
+        .filter(|(o, a)| *o == MEMBER_DECORATE && a.len() == 4 && a[0] == ptr[2] && a[2] == OFFSET)
+        .map(|(_, a)| (a[1], a[3]))
+        .collect();
+    members.sort();
+    members.into_iter().map(|(_, off)| off).collect()
+}
+
+pub fn reflect(shader: Shader) -> Result<Reflected> {
+    let src = layout_source(shader);
+    let words = spirv(src)?;
     let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
     let err = |e: rspirv_reflect::ReflectError| Error::Other(format!("reflecting {src}: {e:?}"));
     let r = rspirv_reflect::Reflection::new_from_spirv(&bytes).map_err(err)?;
@@ -86,6 +169,7 @@ pub fn reflect(name: &str) -> Result<Reflected> {
     Ok(Reflected {
         sets,
         push_size,
+        push_offsets: push_member_offsets(&words),
         workgroup: r.get_compute_group_size(),
     })
 }
@@ -115,8 +199,8 @@ pub struct Pipeline {
     pub name: String,
 }
 
-fn make_module(gpu: &Gpu, name: &str) -> Result<vk::ShaderModule> {
-    let words = spirv(name)?;
+fn make_module(gpu: &Gpu, shader: Shader) -> Result<vk::ShaderModule> {
+    let words = spirv(shader)?;
     unsafe {
         gpu.device
             .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
@@ -221,8 +305,8 @@ fn make_layout(
 
 /// Fixed-function state for a graphics pipeline (dynamic rendering, dynamic viewport).
 pub struct GraphicsDesc<'a> {
-    pub vert: &'a str,
-    pub frag: &'a str,
+    pub vert: Shader,
+    pub frag: Shader,
     pub color_formats: &'a [vk::Format],
     pub depth_format: Option<vk::Format>,
     /// Vertex buffer stride and (location, format, offset) of each attribute (binding 0).
@@ -232,21 +316,21 @@ pub struct GraphicsDesc<'a> {
 }
 
 impl Pipeline {
-    pub fn compute(gpu: &Arc<Gpu>, name: &str) -> Result<Pipeline> {
-        Pipeline::compute_specialized(gpu, name, &[])
+    pub fn compute(gpu: &Arc<Gpu>, shader: Shader) -> Result<Pipeline> {
+        Pipeline::compute_specialized(gpu, shader, &[])
     }
 
     /// A compute pipeline whose specialization constants 0, 1, … take `spec` (u32 each).
-    pub fn compute_specialized(gpu: &Arc<Gpu>, name: &str, spec: &[u32]) -> Result<Pipeline> {
-        let r = reflect(name)?;
+    pub fn compute_specialized(gpu: &Arc<Gpu>, shader: Shader, spec: &[u32]) -> Result<Pipeline> {
+        let r = reflect(shader)?;
         let workgroup = r.workgroup.unwrap_or((1, 1, 1));
         let Layout {
             set_layout,
             layout,
             bindings,
             push_size,
-        } = make_layout(gpu, name, &[(r, vk::ShaderStageFlags::COMPUTE)])?;
-        let module = make_module(gpu, name)?;
+        } = make_layout(gpu, shader.name(), &[(r, vk::ShaderStageFlags::COMPUTE)])?;
+        let module = make_module(gpu, shader)?;
         let entries: Vec<vk::SpecializationMapEntry> = (0..spec.len() as u32)
             .map(|i| vk::SpecializationMapEntry {
                 constant_id: i,
@@ -295,7 +379,7 @@ impl Pipeline {
             push_size,
             stages: vk::ShaderStageFlags::COMPUTE,
             workgroup,
-            name: name.to_string(),
+            name: shader.name().to_string(),
         })
     }
 

@@ -3,6 +3,7 @@
 //! blocks, the 4×4 stride-2 downsampling and the output conv; its epilogue fuses the fixup
 //! scalars, per-channel bias, residual and ReLU.
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use half::f16;
@@ -286,6 +287,22 @@ struct ConvPush {
     ocb_base: u32,
 }
 
+/// ConvPush as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const CONV_PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    ConvPush,
+    [
+        shaders::NET_CONV,
+        shaders::NET_CONV_F32,
+        shaders::NET_CONV_R,
+        shaders::NET_CONV_R_F32,
+        shaders::NET_CONV_CM
+    ],
+    [
+        in_w, in_h, in_c4, out_w, out_h, out_c, ksize, stride, pad, icp, in_bias, out_bias, scale,
+        flags, ocb_base
+    ]
+);
+
 /// Push constants of conv_lp_f32.comp (scalar layout; addresses as low, high words).
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -307,6 +324,16 @@ struct LanesPush {
     out_bias: f32,
     scale: f32,
 }
+
+/// LanesPush as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const LANES_PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    LanesPush,
+    [shaders::NET_CONV_LP_F32],
+    [
+        in_addr, out_addr, res_addr, w_addr, bias_addr, in_w, in_h, in_c4, out_w, out_h, out_c,
+        pad, flags, in_bias, out_bias, scale
+    ]
+);
 
 /// A device address as the shader's uvec2 (low, high).
 fn words(a: u64) -> [u32; 2] {
@@ -355,7 +382,7 @@ impl LanesConv {
         let pipes = LANES_SHAPES
             .iter()
             .map(|&(k, s)| {
-                Pipeline::compute_specialized(gpu, "net/conv_lp_f32.comp", &[k, s, ocn, rows])
+                Pipeline::compute_specialized(gpu, shaders::NET_CONV_LP_F32, &[k, s, ocn, rows])
                     .map(|p| ((k, s), p))
             })
             .collect::<Result<Vec<_>>>()?;
@@ -426,6 +453,13 @@ struct UpPush {
     c4: u32,
 }
 
+/// UpPush as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const UP_PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    UpPush,
+    [shaders::NET_UPSAMPLE_ADD, shaders::NET_UPSAMPLE_ADD_F32],
+    [src_w, src_h, dst_w, dst_h, c4]
+);
+
 /// Push constants of upsample_add_lp_f32.comp: the tensors by pointer, then UpPush's sizes.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -434,6 +468,21 @@ struct UpLanesPush {
     dst_addr: [u32; 2],
     sizes: UpPush,
 }
+
+/// UpLanesPush as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const UP_LANES_PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    UpLanesPush,
+    [shaders::NET_UPSAMPLE_ADD_LP_F32],
+    [
+        src_addr,
+        dst_addr,
+        sizes.src_w,
+        sizes.src_h,
+        sizes.dst_w,
+        sizes.dst_h,
+        sizes.c4
+    ]
+);
 
 /// The network's pipelines for one storage type and backend.
 pub struct NetKernels {
@@ -501,11 +550,11 @@ impl NetKernels {
     pub fn with_backend(gpu: &Arc<Gpu>, storage: Storage, backend: Backend) -> Result<NetKernels> {
         let conv = match (storage, backend) {
             (Storage::F16, Backend::CoopMatrix) => {
-                Pipeline::compute_specialized(gpu, "net/conv_cm.comp", &coop_spec(gpu)?)?
+                Pipeline::compute_specialized(gpu, shaders::NET_CONV_CM, &coop_spec(gpu)?)?
             }
-            (Storage::F16, Backend::Portable) => Pipeline::compute(gpu, "net/conv.comp")?,
+            (Storage::F16, Backend::Portable) => Pipeline::compute(gpu, shaders::NET_CONV)?,
             (Storage::F32, Backend::Portable | Backend::CpuLanes) => {
-                Pipeline::compute(gpu, "net/conv_f32.comp")?
+                Pipeline::compute(gpu, shaders::NET_CONV_F32)?
             }
             (Storage::F32, Backend::CoopMatrix) => {
                 return Err(Error::Other(
@@ -519,14 +568,14 @@ impl NetKernels {
             }
         };
         let up = match (storage, backend) {
-            (Storage::F16, _) => "net/upsample_add.comp",
-            (Storage::F32, Backend::CpuLanes) => "net/upsample_add_lp_f32.comp",
-            (Storage::F32, _) => "net/upsample_add_f32.comp",
+            (Storage::F16, _) => shaders::NET_UPSAMPLE_ADD,
+            (Storage::F32, Backend::CpuLanes) => shaders::NET_UPSAMPLE_ADD_LP_F32,
+            (Storage::F32, _) => shaders::NET_UPSAMPLE_ADD_F32,
         };
         let conv_rem = match (storage, backend) {
-            (Storage::F16, Backend::Portable) => Some(Pipeline::compute(gpu, "net/conv_r.comp")?),
+            (Storage::F16, Backend::Portable) => Some(Pipeline::compute(gpu, shaders::NET_CONV_R)?),
             (Storage::F32, Backend::Portable) => {
-                Some(Pipeline::compute(gpu, "net/conv_r_f32.comp")?)
+                Some(Pipeline::compute(gpu, shaders::NET_CONV_R_F32)?)
             }
             _ => None,
         };

@@ -1,6 +1,7 @@
 //! C = A·B on fp16 storage (`shaders_glsl/net/gemm*.comp`): the matrix core that the network's
 //! convolutions are built on, and the smallest kernel that exercises both backends.
 
+use crate::gpu::shaders;
 use std::sync::Arc;
 
 use half::f16;
@@ -19,6 +20,10 @@ struct Push {
     k: u32,
 }
 
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout =
+    crate::push_layout!(Push, [shaders::NET_GEMM, shaders::NET_GEMM_CM], [m, n, k]);
+
 pub struct Gemm {
     pub backend: Backend,
     pipeline: Pipeline,
@@ -32,9 +37,9 @@ impl Gemm {
     pub fn with_backend(gpu: &Arc<Gpu>, backend: Backend) -> Result<Gemm> {
         let pipeline = match backend {
             Backend::CoopMatrix => {
-                Pipeline::compute_specialized(gpu, "net/gemm_cm.comp", &coop_spec(gpu)?)?
+                Pipeline::compute_specialized(gpu, shaders::NET_GEMM_CM, &coop_spec(gpu)?)?
             }
-            Backend::Portable | Backend::CpuLanes => Pipeline::compute(gpu, "net/gemm.comp")?,
+            Backend::Portable | Backend::CpuLanes => Pipeline::compute(gpu, shaders::NET_GEMM)?,
         };
         Ok(Gemm { backend, pipeline })
     }

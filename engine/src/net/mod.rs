@@ -5,6 +5,8 @@
 mod conv;
 mod gemm;
 mod model;
+pub(crate) use conv::{CONV_PUSH_LAYOUT, LANES_PUSH_LAYOUT, UP_LANES_PUSH_LAYOUT, UP_PUSH_LAYOUT};
+pub(crate) use gemm::PUSH_LAYOUT as GEMM_PUSH_LAYOUT;
 
 pub use conv::{
     conv_reference, pack_lanes, pack_weights, upsample_add_reference, Conv, Epilogue, LanesConv,

@@ -18,6 +18,8 @@ pub enum FileKind {
     Image,
     /// Network weights (safetensors).
     Weights,
+    /// Binary camera models (COLMAP's cameras.bin, images.bin with their 2D points).
+    Binary,
 }
 
 impl FileKind {
@@ -28,6 +30,7 @@ impl FileKind {
             FileKind::Mesh => 4 << 30,
             FileKind::Image => 2 << 30,
             FileKind::Weights => 4 << 30,
+            FileKind::Binary => 2 << 30,
         }
     }
 
@@ -37,6 +40,7 @@ impl FileKind {
             FileKind::Mesh => "mesh",
             FileKind::Image => "image",
             FileKind::Weights => "weights file",
+            FileKind::Binary => "binary model file",
         }
     }
 }

@@ -1,5 +1,6 @@
 //! Scenes: calibrated views, a proxy mesh, lights and lighting presets, loaded from Relit's
-//! `scene.json`, a COLMAP text model, or the SIBR/Bundler layout of the paper's authors.
+//! `scene.json`, a COLMAP model (binary or text), the SIBR/Bundler layout of the paper's authors,
+//! or a NeRF-style `transforms.json`.
 //! Every loader converts cameras to the one convention of [`camera`].
 
 pub mod camera;
@@ -13,6 +14,7 @@ pub mod meshproc;
 pub mod path;
 mod sibr;
 pub mod synth;
+mod transforms;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -38,14 +40,17 @@ pub enum SceneFormat {
     Relit,
     Colmap,
     Sibr,
+    /// instant-ngp / nerfstudio `transforms.json`.
+    Transforms,
 }
 
 impl std::fmt::Display for SceneFormat {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
             SceneFormat::Relit => "relit scene.json",
-            SceneFormat::Colmap => "COLMAP text",
+            SceneFormat::Colmap => "COLMAP",
             SceneFormat::Sibr => "SIBR (Bundler)",
+            SceneFormat::Transforms => "transforms.json (instant-ngp, nerfstudio)",
         })
     }
 }
@@ -287,11 +292,13 @@ impl Scene {
             Some(SceneFormat::Relit) => json::load(path),
             Some(SceneFormat::Colmap) => colmap::load(path),
             Some(SceneFormat::Sibr) => sibr::load(path),
+            Some(SceneFormat::Transforms) => transforms::load(path),
             None => Err(Error::input(
                 path,
                 format!(
-                    "no scene found: expected {SCENE_FILE}, a COLMAP model (sparse/0/cameras.txt + \
-                     images.txt, or cameras.txt + images.txt), or SIBR's cameras/bundle.out"
+                    "no scene found: expected {SCENE_FILE}, a COLMAP model (cameras.bin + images.bin \
+                     or cameras.txt + images.txt, in sparse/0/, sparse/ or the directory), or \
+                     SIBR's cameras/bundle.out, or a transforms.json (instant-ngp, nerfstudio)"
                 ),
             )),
         }
@@ -443,6 +450,7 @@ pub fn write_scene(dir: &Path, scene: &Scene, format: SceneFormat) -> Result<()>
         SceneFormat::Relit => json::write(dir, scene),
         SceneFormat::Colmap => colmap::write(dir, scene),
         SceneFormat::Sibr => sibr::write(dir, scene),
+        SceneFormat::Transforms => transforms::write(dir, scene),
     }
 }
 
@@ -454,6 +462,8 @@ pub fn detect(dir: &Path) -> Option<SceneFormat> {
         Some(SceneFormat::Colmap)
     } else if dir.join("cameras/bundle.out").is_file() {
         Some(SceneFormat::Sibr)
+    } else if dir.join(transforms::FILE).is_file() {
+        Some(SceneFormat::Transforms)
     } else {
         None
     }

@@ -282,7 +282,7 @@ pub fn write_room(dir: &Path, format: SceneFormat, opts: &SynthOptions) -> Resul
     let (lights, presets) = room_lights();
     let mesh_path = match format {
         SceneFormat::Relit => dir.join("mesh.ply"),
-        SceneFormat::Colmap => dir.join("mesh.ply"),
+        SceneFormat::Colmap | SceneFormat::Transforms => dir.join("mesh.ply"),
         SceneFormat::Sibr => {
             let m = dir.join("meshes");
             std::fs::create_dir_all(&m).map_err(|e| Error::io(&m, e))?;

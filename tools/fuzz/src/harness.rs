@@ -86,6 +86,30 @@ pub fn colmap(data: &[u8]) {
     }
 }
 
+/// COLMAP binary: sparse/0/cameras.bin and images.bin. Binary data holds any byte, so the input
+/// starts with the length of cameras.bin (u32, little-endian) instead of a separator.
+pub fn colmap_bin(data: &[u8]) {
+    let dir = scene_dir("colmap_bin", "tools/fuzz/templates/colmap");
+    let (len, rest) = data.split_at(data.len().min(4));
+    let mut n = [0u8; 4];
+    n[..len.len()].copy_from_slice(len);
+    let (cams, imgs) = rest.split_at((u32::from_le_bytes(n) as usize).min(rest.len()));
+    put(&dir, "sparse/0/cameras.bin", cams);
+    put(&dir, "sparse/0/images.bin", imgs);
+    if let Ok(s) = Scene::load(&dir) {
+        let _ = s.check_images();
+    }
+}
+
+/// instant-ngp / nerfstudio transforms.json, beside a template scene's images and mesh.
+pub fn transforms(data: &[u8]) {
+    let dir = scene_dir("transforms", "tools/fuzz/templates/colmap");
+    put(&dir, "transforms.json", data);
+    if let Ok(s) = Scene::load(&dir) {
+        let _ = s.check_images();
+    }
+}
+
 /// SIBR / Bundler: cameras/bundle.out and scene_metadata.txt (split at 0x1E), beside a
 /// template scene.
 pub fn bundler(data: &[u8]) {
@@ -161,9 +185,11 @@ pub fn weights(data: &[u8]) {
 pub type Target = fn(&[u8]);
 
 /// Every target by name, for the regression test.
-pub const TARGETS: [(&str, Target); 8] = [
+pub const TARGETS: [(&str, Target); 10] = [
     ("scene_json", scene_json),
     ("colmap", colmap),
+    ("colmap_bin", colmap_bin),
+    ("transforms", transforms),
     ("bundler", bundler),
     ("mesh_obj", mesh_obj),
     ("mesh_ply", mesh_ply),

@@ -1,7 +1,0 @@
-#version 460
-// Convolution remainder (first 4 channels of a block), portable, fp32 storage (see
-// conv_portable.glsl).
-#extension GL_GOOGLE_include_directive : require
-#define STORE_F32
-#define OCG 1
-#include "conv_portable.glsl"
