@@ -171,9 +171,17 @@ fn colmap_binary_models_load_as_their_text_twins() {
     let imgs = dir.join("sparse/0/images.bin");
     let good = std::fs::read(&imgs).unwrap();
     std::fs::write(&imgs, &good[..good.len() - 5]).unwrap();
-    expect_error(&dir, "images.bin", "a number of 2D points is 2, more than the");
+    expect_error(
+        &dir,
+        "images.bin",
+        "a number of 2D points is 2, more than the",
+    );
     std::fs::write(&imgs, &good[..330]).unwrap();
-    expect_error(&dir, "images.bin", "byte 328: an image NAME has no terminating NUL");
+    expect_error(
+        &dir,
+        "images.bin",
+        "byte 328: an image NAME has no terminating NUL",
+    );
     let mut huge = good.clone();
     huge[..8].copy_from_slice(&u64::MAX.to_le_bytes());
     std::fs::write(&imgs, &huge).unwrap();
@@ -489,6 +497,31 @@ fn malformed_inputs_get_clear_errors() {
     )
     .unwrap();
     expect_error(&d, "mesh.ply", "references vertex 7");
+    cases += 1;
+
+    // 15a. ASCII values that do not fit their declared type: a fraction and "nan" as vertex
+    // indices (both became some index), and a count past its uchar.
+    let head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+                end_header\n0 0 0\n1 0 0\n0 1 0\n";
+    for (face, expect) in [
+        (
+            "3 0 1.5 2",
+            "face 0: property vertex_indices is \"1.5\", not of its type int",
+        ),
+        (
+            "3 0 nan 2",
+            "face 0: property vertex_indices is \"nan\", not of its type int",
+        ),
+        (
+            "300 0 1 2",
+            "face 0: property vertex_indices is \"300\", not of its type uchar",
+        ),
+    ] {
+        let d = room("bad-ply-type", j);
+        std::fs::write(d.join("mesh.ply"), format!("{head}{face}\n")).unwrap();
+        expect_error(&d, "mesh.ply", expect);
+    }
     cases += 1;
 
     // 15b. A PLY whose declared face count does not match its data (the ASCII faces are

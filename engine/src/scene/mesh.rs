@@ -251,6 +251,32 @@ impl PlyType {
             _ => return None,
         })
     }
+    /// Whether an ASCII value is one this type holds: integer types take whole numbers in
+    /// their range only (a fraction or "nan" as an index would otherwise become some index).
+    fn holds(self, v: f64) -> bool {
+        let range = match self {
+            PlyType::I8 => (-128.0, 127.0),
+            PlyType::U8 => (0.0, 255.0),
+            PlyType::I16 => (-32768.0, 32767.0),
+            PlyType::U16 => (0.0, 65535.0),
+            PlyType::I32 => (-2147483648.0, 2147483647.0),
+            PlyType::U32 => (0.0, 4294967295.0),
+            PlyType::F32 | PlyType::F64 => return true,
+        };
+        v.fract() == 0.0 && (range.0..=range.1).contains(&v)
+    }
+    fn name(self) -> &'static str {
+        match self {
+            PlyType::I8 => "char",
+            PlyType::U8 => "uchar",
+            PlyType::I16 => "short",
+            PlyType::U16 => "ushort",
+            PlyType::I32 => "int",
+            PlyType::U32 => "uint",
+            PlyType::F32 => "float",
+            PlyType::F64 => "double",
+        }
+    }
     fn size(self) -> usize {
         match self {
             PlyType::I8 | PlyType::U8 => 1,
@@ -294,15 +320,27 @@ enum PlyReader<'a> {
     Binary { data: &'a [u8], pos: usize },
 }
 
+/// Why a PLY value could not be read: the data ended, or an ASCII token is not of its type.
+enum Misread {
+    End,
+    NotA(PlyType, String),
+}
+
 impl PlyReader<'_> {
-    fn next(&mut self, ty: PlyType) -> Option<f64> {
+    fn next(&mut self, ty: PlyType) -> std::result::Result<f64, Misread> {
         match self {
-            PlyReader::Ascii(it) => it.next()?.parse::<f64>().ok(),
+            PlyReader::Ascii(it) => {
+                let tok = it.next().ok_or(Misread::End)?;
+                match tok.parse::<f64>() {
+                    Ok(v) if ty.holds(v) => Ok(v),
+                    _ => Err(Misread::NotA(ty, tok.to_string())),
+                }
+            }
             PlyReader::Binary { data, pos } => {
                 let n = ty.size();
-                let b = data.get(*pos..*pos + n)?;
+                let b = data.get(*pos..*pos + n).ok_or(Misread::End)?;
                 *pos += n;
-                Some(ty.read(b))
+                Ok(ty.read(b))
             }
         }
     }
@@ -430,17 +468,23 @@ fn load_ply(path: &Path) -> Result<Mesh> {
             let mut vals = [0f64; 3];
             let mut col = [0f64; 3];
             for (pi, p) in e.props.iter().enumerate() {
-                let truncated = || {
-                    bad(format!(
+                let truncated = |m: Misread| match m {
+                    Misread::End => bad(format!(
                         "file ends inside {} {i} of {} (header declares {})",
                         e.name, e.count, e.count
-                    ))
+                    )),
+                    Misread::NotA(ty, tok) => bad(format!(
+                        "{} {i}: property {} is \"{tok}\", not of its type {}",
+                        e.name,
+                        p.name,
+                        ty.name()
+                    )),
                 };
                 if let Some(ct) = p.list {
-                    let n = reader.next(ct).ok_or_else(truncated)? as usize;
+                    let n = reader.next(ct).map_err(truncated)? as usize;
                     let mut poly = Vec::with_capacity(n.min(64));
                     for _ in 0..n {
-                        poly.push(reader.next(p.ty).ok_or_else(truncated)?);
+                        poly.push(reader.next(p.ty).map_err(truncated)?);
                     }
                     if is_face && Some(pi) == fi {
                         if n < 3 {
@@ -459,7 +503,7 @@ fn load_ply(path: &Path) -> Result<Mesh> {
                         }
                     }
                 } else {
-                    let v = reader.next(p.ty).ok_or_else(truncated)?;
+                    let v = reader.next(p.ty).map_err(truncated)?;
                     if Some(pi) == xi {
                         vals[0] = v
                     } else if Some(pi) == yi {
