@@ -196,6 +196,42 @@ fn colmap_binary_models_load_as_their_text_twins() {
     expect_error(&dir, "cameras.bin", "model id 99");
 }
 
+/// An EXR of the given channels (each `w`·`h` floats).
+fn write_exr_channels(path: &Path, w: usize, h: usize, channels: &[(&str, Vec<f32>)]) {
+    use exr::prelude::*;
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
+        .iter()
+        .map(|(n, v)| AnyChannel::new(*n, FlatSamples::F32(v.clone())))
+        .collect();
+    let layer = Layer::new(
+        (w, h),
+        LayerAttributes::default(),
+        Encoding::UNCOMPRESSED,
+        AnyChannels::sort(list),
+    );
+    Image::from_layer(layer).write().to_file(path).unwrap();
+}
+
+#[test]
+fn single_channel_exr_loads_as_grey_and_other_channel_sets_are_refused_by_name() {
+    let dir = common::tempdir("exr-grey");
+    let ys: Vec<f32> = (0..12).map(|i| i as f32 * 0.25).collect();
+    let grey = dir.join("grey.exr");
+    write_exr_channels(&grey, 4, 3, &[("Y", ys.clone())]);
+    let img = load_rgb(&grey).unwrap();
+    assert_eq!((img.width, img.height), (4, 3));
+    for (p, y) in img.pixels.iter().zip(&ys) {
+        assert_eq!(*p, [*y, *y, *y]);
+    }
+    let two = dir.join("two.exr");
+    write_exr_channels(&two, 4, 3, &[("Y", ys.clone()), ("Z", ys)]);
+    let e = load_rgb(&two).unwrap_err().to_string();
+    assert!(
+        e.contains("two.exr") && e.contains("one channel as grey"),
+        "{e}"
+    );
+}
+
 #[test]
 fn ply_ascii_binary_and_obj_load_the_same_mesh() {
     let dir = common::tempdir("meshes");

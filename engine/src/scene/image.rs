@@ -146,13 +146,49 @@ fn decode_exr(path: &Path) -> Result<RgbImage> {
     .map_err(|_| {
         crate::Error::input(path, "the EXR decoder failed on this file (corrupt block)")
     })?;
-    let image = decoded.map_err(|e| {
-        crate::Error::input(
-            path,
-            format!("cannot decode EXR (truncated or corrupt): {e}"),
-        )
-    })?;
-    Ok(image.layer_data.channel_data.pixels)
+    match decoded {
+        Ok(image) => Ok(image.layer_data.channel_data.pixels),
+        Err(e) => decode_exr_grey(&data).ok_or_else(|| {
+            crate::Error::input(
+                path,
+                format!(
+                    "cannot decode EXR: {e} (relit reads R, G, B channels, or one channel as \
+                     grey; the file may also be truncated or corrupt)"
+                ),
+            )
+        }),
+    }
+}
+
+/// A single-channel EXR (luminance `Y`, or one channel of any name, full resolution) as grey
+/// RGB; None for anything else.
+fn decode_exr_grey(data: &[u8]) -> Option<RgbImage> {
+    use exr::prelude::*;
+    let decoded = std::panic::catch_unwind(|| {
+        read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_buffered(std::io::Cursor::new(data))
+    });
+    let image = decoded.ok()?.ok()?;
+    let layer = &image.layer_data;
+    let [channel] = layer.channel_data.list.as_slice() else {
+        return None;
+    };
+    let (w, samples) = (layer.size.width(), &channel.sample_data);
+    if samples.len() != layer.size.area() || w == 0 {
+        return None;
+    }
+    let mut out = RgbImage::new(w as u32, layer.size.height() as u32);
+    for i in 0..samples.len() {
+        let v = samples.value_by_flat_index(i).to_f32();
+        out.set((i % w) as u32, (i / w) as u32, [v, v, v]);
+    }
+    Some(out)
 }
 
 /// Loads an image as linear RGB. Refuses non-finite or negative-infinite pixels, naming the first.
