@@ -818,7 +818,7 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
         let tex = Bc6hTexture::from_files(&gpu, &bc).unwrap();
         let fetch = Fetch::new(&gpu).unwrap();
         for (layer, e) in exrs.iter().enumerate() {
-            let src = relit_engine::bake::run::load_view_map(e).unwrap();
+            let src = relit_engine::bake::BakeCache::load_map(e).unwrap();
             let got = fetch.run(&tex.image, layer as u32, 24, 18).unwrap();
             let psnr = log_psnr(&got, &src);
             assert!(psnr > 40.0, "layer {layer}: {psnr:.1} dB");
@@ -970,8 +970,8 @@ fn bake_accuracy_against_mitsuba_ground_truth() {
     let scene = relit_engine::scene::Scene::load(&dir).unwrap();
     let gpu = common::gpu();
     let params = BakeParams::final_quality();
-    let report = bake(&gpu, &scene, &params, &mut |_: &str, _, _, _| {}).unwrap();
-    let a = accuracy::evaluate(&gpu, &scene, &params, &report.cache).unwrap();
+    bake(&gpu, &scene, &params, &mut |_: &str, _, _, _| {}).unwrap();
+    let a = accuracy::evaluate(&gpu, &scene, &params).unwrap();
     eprintln!("{a:?}");
     // Median relative errors per pixel (luminance). Measured 0.07 / 0.07 / 0.11 at this size
     // (0.14 / 0.14 / 0.21 before next-event estimation of the declared lights and the

@@ -639,7 +639,7 @@ fn bake(
     }
     println!("done in {:.1} s", t0.elapsed().as_secs_f64());
     if eval && report.albedo_mesh {
-        let a = relit_engine::bake::accuracy::evaluate(&gpu, &scene, p, &report.cache)?;
+        let a = relit_engine::bake::accuracy::evaluate(&gpu, &scene, p)?;
         println!(
             "accuracy against ground truth ({} views; per pixel: median relative error, median ratio relit/truth):",
             a.views

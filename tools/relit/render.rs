@@ -161,7 +161,7 @@ pub fn open_renderer(
     };
     // Used added lights with no entry yet (added or moved since the bake, or never used) are
     // baked now.
-    let missing = relit_engine::bake::run::missing_lights(scene, &params)?;
+    let missing = relit_engine::bake::BakeCache::of(scene, &params)?.missing_lights(scene, &params);
     if !missing.is_empty() {
         let names: Vec<&str> = missing.iter().map(|l| l.name.as_str()).collect();
         eprintln!("baking light(s) {} (not in the bake yet)", names.join(", "));

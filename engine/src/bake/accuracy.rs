@@ -10,12 +10,11 @@
 //! relative errors |estimate − truth| / truth, and as the median ratio estimate / truth: the
 //! error bounds its size, the ratio its sign (a bias that a symmetric error hides).
 
-use std::path::Path;
 use std::sync::Arc;
 
 use glam::Vec3;
 
-use super::run::{albedo_file, eadd_file, esrc_file, load_view_map, msrc_file, read_albedo};
+use super::BakeCache;
 use super::ViewData;
 use crate::error::{Error, Result};
 use crate::gpu::{Gpu, RayScene};
@@ -75,13 +74,10 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-/// `p`: the parameters the cache was baked with (they decide the traced mesh).
-pub fn evaluate(
-    gpu: &Arc<Gpu>,
-    scene: &Scene,
-    p: &super::BakeParams,
-    cache: &Path,
-) -> Result<Accuracy> {
+/// The bake of `scene` with `p` (the parameters also decide the traced mesh) against its
+/// ground truth.
+pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, p: &super::BakeParams) -> Result<Accuracy> {
+    let cache = &BakeCache::of(scene, p)?;
     let geom = super::run::bake_mesh(scene, p);
     let syn = scene.synthetic.as_ref().ok_or_else(|| {
         Error::Other(format!(
@@ -98,7 +94,7 @@ pub fn evaluate(
         .map(|v| load_rgb(&v.image))
         .collect::<Result<Vec<_>>>()?;
     let d = ViewData::build(gpu, &mesh, &cams, &imgs)?;
-    let albedo = read_albedo(&albedo_file(cache), geom.positions.len())?;
+    let albedo = cache.read_albedo(geom.positions.len())?;
     let npix = d.pixels();
     let mut acc = Accuracy::default();
     let (mut es, mut al, mut ms) = (Vec::new(), Vec::new(), Vec::new());
@@ -120,11 +116,11 @@ pub fn evaluate(
             load_rgb(&f("depth"))?,
             load_rgb(&diff)?,
         );
-        let esrc = load_view_map(&esrc_file(cache, &v.name))?;
+        let esrc = BakeCache::load_map(&cache.esrc(&v.name))?;
         let mirror_gt = gt.join("original").join(format!("{}.mirror.exr", v.name));
         let mirror = if mirror_gt.exists() {
             Some((
-                load_view_map(&msrc_file(cache, &v.name))?,
+                BakeCache::load_map(&cache.msrc(&v.name))?,
                 load_rgb(&mirror_gt)?,
             ))
         } else {
@@ -135,11 +131,9 @@ pub fn evaluate(
             .map(|(l, _)| {
                 let g = gt.join(l).join(format!("{}.diffuse.exr", v.name));
                 let light = scene.lights.iter().find(|x| x.name == *l);
-                let c = light
-                    .map(|x| eadd_file(cache, &v.name, x, p))
-                    .unwrap_or_default();
+                let c = light.map(|x| cache.eadd(&v.name, x, p)).unwrap_or_default();
                 (g.exists() && c.exists())
-                    .then(|| Ok::<_, Error>((load_view_map(&c)?, load_rgb(&g)?)))
+                    .then(|| Ok::<_, Error>((BakeCache::load_map(&c)?, load_rgb(&g)?)))
                     .transpose()
             })
             .collect::<Result<_>>()?;

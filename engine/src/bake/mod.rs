@@ -4,6 +4,7 @@
 pub mod accuracy;
 pub mod added_irradiance;
 pub mod albedo_mesh;
+pub mod cache;
 pub mod denoise;
 pub mod mirror;
 pub mod radiance_mesh;
@@ -17,6 +18,7 @@ pub mod views;
 
 pub use added_irradiance::{AddedIrradiance, AddedParams, GpuLight};
 pub use albedo_mesh::AlbedoMesh;
+pub use cache::BakeCache;
 pub use denoise::{Denoise, DenoiseParams};
 pub use mirror::Mirror;
 pub use radiance_mesh::RadianceMesh;

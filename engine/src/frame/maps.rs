@@ -138,25 +138,22 @@ impl ViewMaps {
         host: &HostMaps,
         format: MapFormat,
     ) -> Result<ViewMaps> {
-        use crate::bake::run;
-        let cache = run::cache_dir(scene, params)?;
+        use crate::bake::BakeCache;
+        let cache = BakeCache::of(scene, params)?;
         let files = |f: &dyn Fn(&str) -> std::path::PathBuf| -> Option<Vec<std::path::PathBuf>> {
             let v: Vec<_> = scene
                 .views
                 .iter()
-                .map(|v| run::bc6h_file(&f(&v.name)))
+                .map(|v| BakeCache::bc6h(&f(&v.name)))
                 .collect();
             v.iter().all(|p| p.exists()).then_some(v)
         };
-        let msrc = files(&|v| run::msrc_file(&cache, v));
-        let esrc = files(&|v| run::esrc_file(&cache, v));
+        let msrc = files(&|v| cache.msrc(v));
+        let esrc = files(&|v| cache.esrc(v));
         let lights: Vec<_> = scene.lights.iter().filter(|l| !l.original).collect();
         let mut eadd = Some(Vec::new());
         for l in &lights {
-            match (
-                files(&|v| run::eadd_file(&cache, v, l, params)),
-                eadd.as_mut(),
-            ) {
+            match (files(&|v| cache.eadd(v, l, params)), eadd.as_mut()) {
                 (Some(f), Some(all)) => all.extend(f),
                 _ => eadd = None,
             }

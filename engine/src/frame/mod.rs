@@ -18,7 +18,7 @@ use glam::Vec3;
 
 pub use maps::{HostMaps, MapFormat, ViewMaps};
 
-use crate::bake::{run as bakerun, BakeParams, GpuLight, GpuViews, ViewData};
+use crate::bake::{run as bakerun, BakeCache, BakeParams, GpuLight, GpuViews, ViewData};
 use crate::error::{Error, Result};
 use crate::gpu::{
     bytes_of, full_barrier, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, RayScene, Sampler,
@@ -314,8 +314,8 @@ impl FrameScene {
             .collect();
         let mut fs = FrameScene::build(gpu, &mesh, &cams, &host, &added, maps)?;
         fs.unbaked = host.unbaked.clone();
-        let albedo = bakerun::albedo_file(&bakerun::cache_dir(scene, params)?);
-        fs.albedo = Some(bakerun::read_albedo(&albedo, mesh.positions.len())?);
+        let cache = BakeCache::of(scene, params)?;
+        fs.albedo = Some(cache.read_albedo(mesh.positions.len())?);
         Ok(fs)
     }
 
@@ -347,7 +347,7 @@ impl FrameScene {
 
 /// Reads a scene's images and its complete bake cache into host maps.
 pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
-    let cache = bakerun::cache_dir(scene, params)?;
+    let cache = BakeCache::of(scene, params)?;
     let lights: Vec<_> = scene.lights.iter().filter(|l| !l.original).collect();
     let mut m = HostMaps::default();
     let load = |path: &Path| -> Result<Vec<[f32; 4]>> {
@@ -360,7 +360,7 @@ pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
                 ),
             ));
         }
-        bakerun::load_view_map(path)
+        BakeCache::load_map(path)
     };
     for v in &scene.views {
         let img = load_rgb(&v.image)?;
@@ -368,13 +368,13 @@ pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
         m.height = img.height;
         m.img
             .push(img.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect());
-        m.msrc.push(load(&bakerun::msrc_file(&cache, &v.name))?);
-        m.esrc.push(load(&bakerun::esrc_file(&cache, &v.name))?);
+        m.msrc.push(load(&cache.msrc(&v.name))?);
+        m.esrc.push(load(&cache.esrc(&v.name))?);
     }
     let npix = (m.width * m.height) as usize;
     for l in &lights {
         let files: Vec<_> = (scene.views.iter())
-            .map(|v| bakerun::eadd_file(&cache, &v.name, l, params))
+            .map(|v| cache.eadd(&v.name, l, params))
             .collect();
         // A light no map was baked for has not been used yet: zero layers, refused if lit.
         if files.iter().all(|f| !f.exists()) {
