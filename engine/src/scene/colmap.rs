@@ -277,6 +277,9 @@ struct Bin<'a> {
 }
 
 impl<'a> Bin<'a> {
+    fn new(file: &'a Path, data: &'a [u8]) -> Bin<'a> {
+        Bin { file, data, pos: 0 }
+    }
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8]> {
         if self.data.len() - self.pos < n {
             return Err(Error::input(
@@ -332,11 +335,7 @@ fn read_bin(file: &Path) -> Result<Vec<u8>> {
 
 fn read_cameras_bin(file: &Path) -> Result<Vec<(u32, RawCamera)>> {
     let data = read_bin(file)?;
-    let mut b = Bin {
-        file,
-        data: &data,
-        pos: 0,
-    };
+    let mut b = Bin::new(file, &data);
     let n = b.count("the number of cameras", 24)?;
     let mut cams = Vec::with_capacity(n);
     for k in 0..n {
@@ -372,11 +371,7 @@ fn read_cameras_bin(file: &Path) -> Result<Vec<(u32, RawCamera)>> {
 
 fn read_images_bin(file: &Path) -> Result<Vec<RawImage>> {
     let data = read_bin(file)?;
-    let mut b = Bin {
-        file,
-        data: &data,
-        pos: 0,
-    };
+    let mut b = Bin::new(file, &data);
     let n = b.count("the number of images", 77)?;
     let mut out = Vec::with_capacity(n);
     for k in 0..n {
