@@ -389,3 +389,102 @@ fn an_impossible_allocation_names_the_buffer_and_its_size() {
     assert!(!e.contains("AllocationCreateDesc"), "{e}");
     common::assert_no_validation_errors(&gpu);
 }
+
+/// A path recorded in the viewer loads with `relit fly`'s loader and passes through every
+/// keyframe: camera (position, rotation, field of view), α_dim, intensities and light moves at
+/// the keyframes' times; times grow with the distance walked and the angle turned.
+#[test]
+fn a_recorded_path_replays_its_keyframes() {
+    use glam::Vec3;
+    use relit_engine::scene::Camera;
+    use relit_engine::view::recorder::{Keyframe, PathRecorder, GAP_S, MIN_GAP_S};
+    use std::collections::BTreeMap;
+    let cam = |p: [f32; 3], at: [f32; 3], fx: f32| {
+        Camera::look_at(p.into(), at.into(), Vec3::Y, 64, 48, fx)
+    };
+    let home: BTreeMap<String, Vec3> = [("lamp".to_string(), Vec3::new(1.0, 2.0, 0.0))].into();
+    let key = |c: Camera, dim: f32, lamp: f32, at: Vec3| Keyframe {
+        camera: c,
+        dim,
+        intensities: [("lamp".to_string(), lamp)].into(),
+        lights: [("lamp".to_string(), at)].into(),
+    };
+    let mut rec = PathRecorder::default();
+    rec.add(key(
+        cam([0.0, 1.5, 0.0], [0.0, 1.5, -1.0], 40.0),
+        1.0,
+        0.0,
+        home["lamp"],
+    ));
+    rec.add(key(
+        cam([0.0, 1.5, -2.0], [1.0, 1.2, -3.0], 40.0),
+        0.3,
+        1.0,
+        home["lamp"],
+    ));
+    rec.add(key(
+        cam([0.1, 1.5, -2.0], [-1.0, 1.5, -2.5], 55.0),
+        0.3,
+        2.0,
+        Vec3::new(1.5, 2.0, 0.0),
+    ));
+    let times = rec.times();
+    assert_eq!(times[0], 0.0);
+    // 2 m at 0.5 m/s is 4 s; the last key turns by ~100° in place: over 2 s at 45°/s.
+    assert_eq!(times[1], 4.0);
+    assert!(times[2] - times[1] >= 2.0 && times[2] - times[1] >= MIN_GAP_S);
+    assert!(
+        times.iter().all(|t| (t / GAP_S).fract() == 0.0),
+        "{times:?}"
+    );
+    let file = common::tempdir("recorded-path").join("path.json");
+    rec.save(&file, &home).unwrap();
+    let path = CameraPath::load(&file).unwrap();
+    for (k, t) in rec.keys.iter().zip(&times) {
+        let c = path.camera_at(*t, 64, 48);
+        assert!((c.center() - k.camera.center()).length() < 1e-5, "t {t}");
+        let r = (c.rotation - k.camera.rotation).to_cols_array();
+        assert!(r.iter().all(|v| v.abs() < 1e-4), "t {t}: rotation {r:?}");
+        assert!(
+            (c.fx - k.camera.fx).abs() < 1e-3,
+            "t {t}: fx {} against {}",
+            c.fx,
+            k.camera.fx
+        );
+        let l = path.lighting_at(*t).unwrap();
+        assert!((l.dim - k.dim).abs() < 1e-6);
+        assert!((l.intensities["lamp"] - k.intensities["lamp"]).abs() < 1e-6);
+        let moved = home["lamp"] + l.moves.get("lamp").copied().unwrap_or(Vec3::ZERO);
+        assert!(
+            (moved - k.lights["lamp"]).length() < 1e-6,
+            "t {t}: lamp at {moved}"
+        );
+    }
+    // One keyframe is not a path: refused by name, nothing written.
+    let one = PathRecorder {
+        keys: rec.keys[..1].to_vec(),
+    };
+    let f1 = file.with_file_name("one.json");
+    let e = one.save(&f1, &home).unwrap_err().to_string();
+    assert!(e.contains("one.json") && e.contains("two keyframes"), "{e}");
+    assert!(!f1.exists());
+}
+
+/// The README's viewer section lists every key the viewer has (`view::hud::KEYS`, which F1
+/// shows), each on a line of its own.
+#[test]
+fn the_readme_lists_every_viewer_key() {
+    let text = std::fs::read_to_string(Path::new(ROOT).join("README.md")).unwrap();
+    let start = text
+        .find("### Viewer keys")
+        .expect("README: a \"### Viewer keys\" section");
+    let section = &text[start..];
+    let section = &section[..section[4..].find("\n#").map_or(section.len(), |e| e + 4)];
+    for (key, what) in relit_engine::view::hud::KEYS {
+        let row = format!("| `{key}` |");
+        assert!(
+            section.contains(&row),
+            "README's viewer keys lack {row} ({what})"
+        );
+    }
+}

@@ -241,12 +241,13 @@ fn view_shows_the_scene_in_a_window_under_xvfb() {
     let sp = s.to_str().unwrap();
     let d = s.parent().unwrap();
     let (shot, want) = (d.join("shot.png"), d.join("render.png"));
-    let (a, so) = run_view(
-        &s,
+    let args = [
+        &PLAIN[..],
         &["--res", "64x48", "--camera", "0", "--frames", "3"],
-        &shot,
-    );
-    assert!(so.contains("read back from the window"), "{so}");
+    ]
+    .concat();
+    let (a, so) = run_view(&s, &args, &shot);
+    assert!(so.contains("the window's picture"), "{so}");
     ok(&[
         "render",
         sp,
@@ -276,12 +277,17 @@ fn view_shows_the_scene_in_a_window_under_xvfb() {
     );
 }
 
-/// Runs `relit view SCENE ARGS --screenshot SHOT` under Xvfb (validation on when installed);
-/// returns the last frame and stdout.
+/// The viewer's settings for comparing pixels: the window as large as the frame, the full
+/// frame every time, no HUD.
+const PLAIN: [&str; 5] = ["--window", "64x48", "--fluid", "still", "--no-hud"];
+
+/// Runs `relit view SCENE ARGS --screenshot SHOT` under Xvfb (validation on when installed), in
+/// SHOT's directory (where P saves its screenshots); returns the last frame and stdout.
 fn run_view(scene: &Path, args: &[&str], shot: &Path) -> (image::RgbImage, String) {
     let entry = relit_engine::gpu::load_entry().unwrap();
     let validate = relit_engine::gpu::validation_layer_available(&entry);
     let out = Command::new("xvfb-run")
+        .current_dir(shot.parent().unwrap())
         .args([
             "-a",
             "-s",
@@ -311,7 +317,12 @@ fn view_frame(scene: &Path, keys: &str, frames: u32, shot: &Path) -> image::RgbI
     let args = [
         "--res", "64x48", "--camera", "0", "--mode", "ratio", "--frames", &frames,
     ];
-    run_view(scene, &[&args[..], &["--keys", keys]].concat(), shot).0
+    run_view(
+        scene,
+        &[&PLAIN[..], &args[..], &["--keys", keys]].concat(),
+        shot,
+    )
+    .0
 }
 
 /// Per pixel, how much brighter `a` is than `b` (sum over channels, code values).
@@ -587,4 +598,173 @@ fn render_batch_equals_single_renders_and_names_bad_entries() {
     std::fs::write(&jobs, br#"[{"mode": "ulr", "out": "x.exr"}]"#).unwrap();
     let (_, _, err) = relit(&["render", sp, "--batch", jobs.to_str().unwrap()]);
     assert!(err.contains("\"camera\" is missing"), "{err}");
+}
+
+/// Pixels whose largest channel difference exceeds 2 code values, and the mean difference.
+fn differ(a: &image::RgbImage, b: &image::RgbImage) -> (usize, f64) {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let d: Vec<i32> = (a.pixels().zip(b.pixels()))
+        .map(|(p, q)| {
+            (0..3)
+                .map(|k| (p.0[k] as i32 - q.0[k] as i32).abs())
+                .max()
+                .unwrap()
+        })
+        .collect();
+    let mean = d.iter().sum::<i32>() as f64 / d.len() as f64;
+    (d.iter().filter(|&&v| v > 2).count(), mean)
+}
+
+/// A path recorded in the viewer with scripted keys (walk, strafe, a lighting preset, dimming;
+/// R drops keyframes, P takes screenshots there) is written on exit; `relit fly` renders it, and
+/// its frames at the keyframes' times equal the viewer's screenshots there (tolerance: at most
+/// 1% of pixels more than 2 code values apart, from the interpolated rotation's rounding).
+/// `--play` paused at the start shows fly's first frame.
+#[test]
+fn view_records_a_path_that_fly_replays_under_xvfb() {
+    let s = baked_tiny("view-record");
+    let (sp, d) = (s.to_str().unwrap(), s.parent().unwrap().to_path_buf());
+    let path = d.join("walk.json");
+    let keys = "1:R,1:P,2:+W,4:-W,5:+D,6:-D,7:1,7:[,7:[,8:R,8:P,9:+A,10:-A,11:+E,12:-E,13:R,13:P";
+    let base = ["--res", "64x48", "--camera", "0", "--mode", "ratio"];
+    let rec = [
+        "--frames",
+        "15",
+        "--keys",
+        keys,
+        "--record",
+        path.to_str().unwrap(),
+    ];
+    let (_, so) = run_view(&s, &[&PLAIN[..], &base, &rec].concat(), &d.join("last.png"));
+    assert!(
+        so.contains("keyframe 3") && so.contains("(3 keyframes"),
+        "{so}"
+    );
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let times: Vec<f64> = (doc["keyframes"].as_array().unwrap().iter())
+        .map(|k| k["time"].as_f64().unwrap())
+        .collect();
+    assert_eq!(times.len(), 3);
+    let frames = d.join("fly");
+    let fly = [
+        "fly",
+        sp,
+        "--path",
+        path.to_str().unwrap(),
+        "--out",
+        frames.to_str().unwrap(),
+    ];
+    ok(&[
+        &fly[..],
+        &["--res", "64x48", "--fps", "4", "--mode", "ratio"],
+    ]
+    .concat());
+    let shots: Vec<image::RgbImage> = (1..=3)
+        .map(|k| png(&d.join(format!("relit-screenshot-{k:03}.png"))))
+        .collect();
+    for (k, t) in times.iter().enumerate() {
+        let frame = png(&frames.join(format!("frame{:05}.png", (t * 4.0).round() as usize)));
+        let (n, mean) = differ(&shots[k], &frame);
+        eprintln!("keyframe {k} at {t} s: {n} pixels differ by more than 2, mean {mean:.3}");
+        assert!(
+            n * 100 <= 64 * 48 && mean < 1.0,
+            "keyframe {k}: {n} pixels, mean {mean}"
+        );
+    }
+    let (n, mean) = differ(&shots[0], &shots[1]);
+    assert!(
+        n > 64 * 48 / 10 && mean > 2.0,
+        "the keyframes must differ ({n}, {mean})"
+    );
+    let play = [
+        "--frames",
+        "3",
+        "--keys",
+        "0:Space",
+        "--play",
+        path.to_str().unwrap(),
+    ];
+    let (first, _) = run_view(
+        &s,
+        &[&PLAIN[..], &base, &play].concat(),
+        &d.join("play.png"),
+    );
+    let (n, mean) = differ(&first, &png(&frames.join("frame00000.png")));
+    assert!(
+        n * 100 <= 64 * 48 && mean < 1.0,
+        "playback's first frame: {n} pixels, {mean}"
+    );
+}
+
+/// The HUD is drawn into the window's picture (white text on a dimmed box, top left) and H
+/// hides it; F1 shows the keys instead. A scripted resize makes the swapchain again at the new
+/// size (no validation error: `run_view` checks). `relit bench frame` prints the moving and
+/// the still frame rates on lines of their own.
+#[test]
+fn view_hud_resize_and_frame_rates_under_xvfb() {
+    use image::GenericImageView;
+    let s = baked_tiny("view-hud");
+    let d = s.parent().unwrap().to_path_buf();
+    let base = [
+        "--res", "64x48", "--camera", "0", "--mode", "ratio", "--fluid", "still",
+    ];
+    let base = [&base[..], &["--window", "256x192", "--frames", "3"]].concat();
+    let shot = |name: &str, keys: &str| {
+        let args = [&base[..], &["--keys", keys]].concat();
+        run_view(&s, &args, &d.join(name))
+    };
+    let (hud, _) = shot("hud.png", "");
+    let (plain, _) = shot("plain.png", "1:H");
+    let (help, _) = shot("help.png", "1:F1");
+    let white = |img: &image::RgbImage, y0: u32, y1: u32| {
+        (img.enumerate_pixels())
+            .filter(|(_, y, p)| (y0..y1).contains(y) && p.0 == [255, 255, 255])
+            .count()
+    };
+    let (with, without) = (white(&hud, 0, 60), white(&plain, 0, 60));
+    eprintln!("white pixels at the top: {with} with the HUD, {without} without");
+    assert!(
+        with > without + 150,
+        "the HUD's text shows ({with} against {without})"
+    );
+    assert!(
+        white(&help, 0, 192) > white(&hud, 0, 192) + 300,
+        "F1 lists the keys"
+    );
+    // Below the HUD's box the pictures are the same.
+    let below = |img: &image::RgbImage| img.view(0, 120, 256, 72).to_image();
+    assert_eq!(below(&hud), below(&plain));
+
+    let (big, so) = shot("resized.png", "1:size=96x72");
+    assert!(
+        so.contains("swapchain: 256x192") && so.contains("swapchain: 96x72"),
+        "{so}"
+    );
+    assert_eq!(big.dimensions(), (96, 72));
+
+    let json = d.join("bench.json");
+    let sp = s.to_str().unwrap();
+    let out = ok(&[
+        "bench", "frame", sp, "--res", "32x24", "--frames", "2", "--mode", "ratio",
+    ]
+    .into_iter()
+    .chain(["--json", json.to_str().unwrap()])
+    .collect::<Vec<_>>());
+    for label in ["moving: ", "still: "] {
+        let line = out
+            .lines()
+            .find(|l| l.starts_with(label))
+            .unwrap_or_else(|| panic!("{out}"));
+        let fps: f64 = line[label.len()..]
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(fps > 0.0, "{line}");
+    }
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(v["moving_fps"].as_f64().unwrap() > 0.0 && v["still_fps"].as_f64().unwrap() > 0.0);
 }

@@ -547,3 +547,63 @@ fn gather_probe_matches_cpu_both_ways() {
     );
     common::assert_no_validation_errors(&gpu);
 }
+
+/// The viewer's compose pass (`view/compose.comp`) against its CPU reference: a frame shown 1:1
+/// is copied exactly; scaled into a window of another aspect it is bilinear within 1 code
+/// value with black bars, the HUD's glyphs and box exact, in either byte order.
+#[test]
+fn compose_scales_the_frame_and_draws_the_hud_as_the_cpu_reference() {
+    use relit_engine::view::compose::{font_words, push, reference, Compose, HudText};
+    let gpu = common::gpu();
+    let (sw, sh) = (13u32, 9u32);
+    let mut rng = Rng::new(7);
+    let src: Vec<u8> = (0..sw * sh * 4)
+        .map(|_| rng.range(0.0, 255.99) as u8)
+        .collect();
+    let buf =
+        Buffer::from_slice(&gpu, "frame", vk::BufferUsageFlags::STORAGE_BUFFER, &src).unwrap();
+    let mut compose = Compose::new(&gpu).unwrap();
+    let hud = HudText::new(&["12.5 fps".into(), "Ratio {x}".into()]);
+    for (dst, hud, bgr) in [
+        ((sw, sh), None, false),
+        ((50, 21), Some(&hud), false),
+        ((31, 40), Some(&hud), true),
+        ((960, 500), Some(&hud), true),
+    ] {
+        gpu.submit(|cmd| compose.record(cmd, &buf, (sw, sh), dst, hud, bgr))
+            .unwrap()
+            .unwrap();
+        let got = compose
+            .output()
+            .download_range(0, (dst.0 * dst.1 * 4) as u64)
+            .unwrap();
+        let p = push((sw, sh), dst, hud, bgr);
+        let text = hud.map(|t| t.cells.clone()).unwrap_or_default();
+        let want = reference(&src, &p, &text, &font_words());
+        let worst = (got.iter().zip(&want))
+            .map(|(a, b)| (*a as i32 - *b as i32).abs())
+            .max()
+            .unwrap();
+        let limit = if dst == (sw, sh) { 0 } else { 1 };
+        assert!(
+            worst <= limit,
+            "{dst:?}: compose differs from the reference by {worst}"
+        );
+        if dst == (sw, sh) {
+            assert_eq!(
+                got,
+                src.chunks(4)
+                    .flat_map(|c| [c[0], c[1], c[2], 255])
+                    .collect::<Vec<_>>()
+            );
+        }
+        if hud.is_some() {
+            let white = want.chunks(4).filter(|c| c[..3] == [255, 255, 255]).count();
+            assert!(
+                white > 20,
+                "{dst:?}: the reference draws the HUD's text ({white} px)"
+            );
+        }
+    }
+    common::assert_no_validation_errors(&gpu);
+}

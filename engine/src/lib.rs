@@ -21,6 +21,7 @@ pub mod net;
 pub mod raster;
 pub mod scene;
 pub mod trace;
+pub mod view;
 
 pub use error::{Error, Result};
 
@@ -48,5 +49,6 @@ pub fn push_layouts() -> Vec<gpu::PushLayout> {
         crate::bake::mirror::PUSH_LAYOUT,
         crate::bake::albedo_mesh::PUSH_LAYOUT,
         crate::gpu::gather::PUSH_LAYOUT,
+        crate::view::compose::PUSH_LAYOUT,
     ]
 }

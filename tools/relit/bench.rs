@@ -862,6 +862,43 @@ fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
 }
 
 #[allow(clippy::too_many_arguments)]
+/// The viewer's moving frames along `cams`: ratio mode at the resolution `view::fluid` settles
+/// on (it halves the resolution while a frame misses 8 fps). Returns the median fps over the
+/// frames at the final resolution, and that resolution.
+fn moving_frames(
+    r: &mut relit_engine::frame::Renderer,
+    cams: &[relit_engine::scene::Camera],
+    light: &relit_engine::frame::Lighting,
+    frames: u32,
+) -> Result<(f64, (u32, u32))> {
+    use relit_engine::view::fluid::{moving_res, Fluid, Next, Policy};
+    let mut fluid = Fluid::new(Policy::Moving);
+    let res = (cams[0].width, cams[0].height);
+    r.display_only = true;
+    let mut times: Vec<(u32, f64)> = Vec::new();
+    // Enough frames for the divisor to settle (at most two halvings), then `frames` more.
+    for i in 0..(frames.max(1) as usize + 4) {
+        let next = fluid.next(true, false, i as f64);
+        let Next::Moving { divisor } = next else {
+            unreachable!("the moving policy renders moving frames")
+        };
+        let (mw, mh) = moving_res(res, divisor);
+        let cam = crate::render::rescale(&cams[(i + 1) % cams.len()], mw, mh);
+        let t = Instant::now();
+        r.render(&cam, light, relit_engine::frame::Mode::Ratio, 1.0, None)?;
+        let secs = t.elapsed().as_secs_f64();
+        fluid.rendered(next, secs);
+        times.push((divisor, secs * 1e3));
+    }
+    let last = fluid.divisor;
+    let at_last: Vec<f64> = times
+        .iter()
+        .filter(|(d, _)| *d == last)
+        .map(|t| t.1)
+        .collect();
+    Ok((1e3 / median(at_last), moving_res(res, last)))
+}
+
 fn frame_bench(
     dir: &std::path::Path,
     (w, h): (u32, u32),
@@ -899,6 +936,8 @@ fn frame_bench(
     } else {
         r
     };
+    // As users' frames: ratio and ULR skip the passes that only feed the network.
+    r.display_only = true;
     // Cameras: the synthetic test path when there is one, else the input views.
     let path = scene
         .synthetic
@@ -985,8 +1024,15 @@ fn frame_bench(
         "wall (submit to readable): {wm:.1} ms median, {wp:.1} ms p95 -> {:.2} fps median",
         1e3 / wm
     );
+    let (moving_fps, (mw, mh)) = moving_frames(&mut r, &cams, &light, frames)?;
+    println!("moving: {moving_fps:.1} fps (the viewer's cheap frame: ratio mode at {mw}x{mh}, the resolution it settles on here)");
+    println!(
+        "still: {:.2} fps (the full frame: {mode:?} mode at {w}x{h}, wall median)",
+        1e3 / wm
+    );
     if let Some(path) = json {
         let doc = serde_json::json!({
+            "moving_fps": moving_fps, "moving_res": [mw, mh], "still_fps": 1e3 / wm,
             "device": gpu.caps.name, "scene": dir.display().to_string(), "res": [w, h],
             "mode": format!("{mode:?}"), "storage": format!("{:?}", r.storage),
             "network_width": r.net.as_ref().map(|n| n.config.width),

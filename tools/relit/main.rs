@@ -168,10 +168,33 @@ enum Cmd {
         /// Start lighting preset.
         #[arg(long)]
         lighting: Option<String>,
-        /// Scripted key presses "FRAME:KEY,…" (e.g. "2:N,4:J": add a lamp at frame 2, move it
-        /// left at frame 4), for tests and recorded demos.
+        /// Scripted input "FRAME:KEY,…" (e.g. "2:N,4:J": add a lamp at frame 2, move it left at
+        /// frame 4; "1:+W,5:-W" holds W from frame 1 to 5; "3:size=640x480" resizes), for tests
+        /// and recorded demos.
         #[arg(long)]
         keys: Option<String>,
+        /// Window size WxH (default: two thirds of the screen's height, the frame's aspect);
+        /// the frame is scaled to it with its aspect kept.
+        #[arg(long, value_parser = parse_res)]
+        window: Option<(u32, u32)>,
+        /// Presentation: immediate, mailbox or fifo (vsync). Default: the lowest-latency mode the
+        /// surface offers, so the frame rate shown is the renderer's.
+        #[arg(long, value_parser = parse_present)]
+        present: Option<relit_engine::gpu::PresentMode>,
+        /// Record a camera path: R drops a keyframe, F6 (and exit) writes PATH in the format
+        /// `relit fly` reads.
+        #[arg(long, value_name = "PATH")]
+        record: Option<PathBuf>,
+        /// Play a camera path (as `relit fly` would render it), looping; Space pauses.
+        #[arg(long, value_name = "PATH")]
+        play: Option<PathBuf>,
+        /// Frames: auto (the cheap ratio frame while moving, the full frame once still), still
+        /// (always the full frame) or moving (always the cheap one). G cycles them.
+        #[arg(long, default_value = "auto", value_parser = parse_fluid)]
+        fluid: relit_engine::view::fluid::Policy,
+        /// Start with the HUD hidden (H shows it).
+        #[arg(long)]
+        no_hud: bool,
         #[command(flatten)]
         frame: render::FrameArgs,
     },
@@ -270,6 +293,16 @@ enum SceneCmd {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+}
+
+fn parse_present(s: &str) -> Result<relit_engine::gpu::PresentMode, String> {
+    relit_engine::gpu::PresentMode::parse(s)
+        .ok_or_else(|| format!("\"{s}\": expected immediate, mailbox or fifo"))
+}
+
+fn parse_fluid(s: &str) -> Result<relit_engine::view::fluid::Policy, String> {
+    relit_engine::view::fluid::Policy::parse(s)
+        .ok_or_else(|| format!("\"{s}\": expected auto, still or moving"))
 }
 
 pub fn parse_res(s: &str) -> Result<(u32, u32), String> {
@@ -707,12 +740,24 @@ fn main() {
             camera,
             lighting,
             keys,
+            window,
+            present,
+            record,
+            play,
+            fluid,
+            no_hud,
             frame,
         } => view::view(
             &opts,
             view::ViewArgs {
                 scene: scene.clone(),
                 res: *res,
+                window: *window,
+                present: *present,
+                record: record.clone(),
+                play: play.clone(),
+                fluid: *fluid,
+                hud: !*no_hud,
                 fullscreen: *fullscreen,
                 frames: *frames,
                 screenshot: screenshot.clone(),

@@ -309,6 +309,7 @@ pub fn render_batch(
         .iter()
         .any(|j| j.mode.is_none_or(|m| m.needs_network()));
     let (mut r, mode) = open_renderer(&gpu, &scene, a, size, Some(used), need_net)?;
+    r.display_only = true;
     for ((j, cam), light) in jobs.iter().zip(&cams).zip(&lights) {
         r.render(cam, light, j.mode.unwrap_or(mode), a.exposure, None)?;
         write_frame(&r, &j.out)?;
@@ -333,6 +334,7 @@ pub fn render(
     let gpu = crate::open_gpu(opts)?;
     let used = Some(lit(&scene, &light));
     let (mut r, mode) = open_renderer(&gpu, &scene, a, Some((cam.width, cam.height)), used, false)?;
+    r.display_only = true;
     r.render(&cam, &light, mode, a.exposure, None)?;
     write_frame(&r, out)?;
     println!("{}: {}x{} ({mode:?})", out.display(), cam.width, cam.height);
@@ -366,6 +368,7 @@ pub fn fly(
     let n = frames as u64;
     let gpu = crate::open_gpu(opts)?;
     let (mut r, mode) = open_renderer(&gpu, &scene, a, Some(res), Some(cp.lit_lights()), false)?;
+    r.display_only = true;
     let video = out.extension().is_some_and(|e| e == "mp4");
     let (w, h) = res;
     let tmp = scene::temp_path(out);

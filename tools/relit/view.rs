@@ -1,54 +1,67 @@
-//! `relit view`: the interactive viewer. A winit window with a Vulkan swapchain: each frame is
-//! rendered by the engine at the chosen resolution and blitted (scaled) to the window.
-//!
-//! Keys: W/A/S/D move, Q/E down/up (Shift: faster), drag with the left mouse button or use the
-//! arrow keys to look; 0 original lighting, 1–9 the scene's presets; Tab selects an added light,
-//! +/− change its intensity; [ ] change α_dim; M cycles network (with weights) / ULR / ratio / ratio-filled (with weights); P saves a screenshot;
-//! F11 toggles fullscreen; Esc quits. The title shows fps and per-pass GPU times.
-//! Lights (`view_lights.rs`): N adds a lamp where the window's centre looks; I/K/J/L move the
-//! selected light forward/back/left/right, U/O down/up; , and . shrink and grow it; C changes
-//! its colour; F5 saves the lights and the lighting (preset "viewer") to scene.json.
+//! `relit view`: the interactive viewer. Input, the HUD's contents and path recording live
+//! here; the frame is the engine's `Renderer`, the window's picture `view::compose`, the
+//! swapchain `gpu::present`. While anything moves the viewer shows the cheap frame (ratio mode,
+//! at a resolution that keeps up), and the full frame once the view has been still for a moment
+//! (`view::fluid`). Every key is listed in `relit_engine::view::hud::KEYS` (F1 shows them).
+//! Lights (`view_lights.rs`): N adds a lamp where the window's centre looks; I/K/J/L/U/O move
+//! the selected one, , and . resize it, C recolours it, F5 saves the lights to scene.json.
 
-use std::collections::HashSet;
-use std::ffi::CStr;
-use std::path::{Path, PathBuf};
+use std::collections::{BTreeMap, HashSet};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
+use relit_engine::frame::live::PathMoves;
 use relit_engine::frame::{added_lights, Lighting, Mode, Renderer};
-use relit_engine::gpu::{image_barrier, vk, Buffer, Gpu, GpuOptions, Image, MemoryLocation, Timer};
-use relit_engine::scene::{Camera, Scene};
+use relit_engine::gpu::{present, Gpu, GpuOptions, PresentMode, Presenter, Timer};
+use relit_engine::scene::path::CameraPath;
+use relit_engine::scene::{Camera, LightShape, Scene};
+use relit_engine::view::compose::{Compose, HudText};
+use relit_engine::view::fluid::{moving_res, Fluid, Next, Policy};
+use relit_engine::view::hud::{key_lines, HudInfo, LightInfo};
+use relit_engine::view::recorder::{camera_json, Keyframe, PathRecorder};
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Fullscreen, Window, WindowId};
 
+use crate::view_lights::Scripted;
+
 pub struct ViewArgs {
     pub scene: PathBuf,
     pub res: (u32, u32),
+    /// Window size (None: two thirds of the screen's height, the frame's aspect).
+    pub window: Option<(u32, u32)>,
+    pub present: Option<PresentMode>,
     pub fullscreen: bool,
     pub frames: Option<u64>,
     pub screenshot: Option<PathBuf>,
     pub camera: Option<String>,
     pub lighting: Option<String>,
     pub frame: crate::render::FrameArgs,
-    /// Scripted key presses, "FRAME:KEY,…" (see `view_lights::parse_script`).
+    /// Scripted input, "FRAME:KEY,…" (see `view_lights::parse_script`).
     pub keys: Option<String>,
+    pub record: Option<PathBuf>,
+    pub play: Option<PathBuf>,
+    pub fluid: Policy,
+    pub hud: bool,
 }
 
-struct Swap {
-    loader: ash::khr::swapchain::Device,
-    raw: vk::SwapchainKHR,
-    images: Vec<vk::Image>,
-    format: vk::Format,
-    extent: vk::Extent2D,
-    readable: bool,
-    present_sems: Vec<vk::Semaphore>,
+/// A path being played back in the window.
+struct Player {
+    file: PathBuf,
+    path: CameraPath,
+    moves: PathMoves,
+    t: f32,
+    paused: bool,
 }
+
+/// What the view looks like, to tell whether anything moved since the last frame.
+type Signature = Vec<f32>;
 
 struct App {
     gpu: Arc<Gpu>,
@@ -64,27 +77,39 @@ struct App {
     fov_deg: f32,
     res: (u32, u32),
     exposure: f32,
+    window_size: Option<(u32, u32)>,
     window: Option<Arc<Window>>,
-    surface_loader: ash::khr::surface::Instance,
-    surface: vk::SurfaceKHR,
-    swap: Option<Swap>,
-    acquire_sem: vk::Semaphore,
-    frame_img: Option<Image>,
+    presenter: Option<Presenter>,
+    wanted_present: Option<PresentMode>,
+    compose: Compose,
     held: HashSet<KeyCode>,
     dragging: bool,
     last_cursor: Option<(f64, f64)>,
+    start: Instant,
     last: Instant,
-    fps: f32,
+    fluid: Fluid,
+    signature: Option<Signature>,
+    /// The last rendered frame: what it was, its wall time, its passes.
+    shown: (Next, f64, Vec<(String, f64)>),
+    hud_on: bool,
+    help_on: bool,
+    last_hud: Option<HudText>,
+    /// The window's picture must be presented again (first frame, resize, HUD change).
+    stale: bool,
     frames_done: u64,
     max_frames: Option<u64>,
     screenshot_at_end: Option<PathBuf>,
     screenshot_now: Option<PathBuf>,
     shots: u32,
+    cameras: u32,
     fullscreen: bool,
     error: Option<anyhow::Error>,
     lights: crate::view_lights::LightEditor,
-    /// Scripted key presses (frame index, key), for tests and demos: `--keys`.
-    script: Vec<(u64, KeyCode)>,
+    /// Added lights' centres in scene.json (moves in a recorded path are relative to them).
+    home: BTreeMap<String, Vec3>,
+    recorder: Option<(PathBuf, PathRecorder)>,
+    player: Option<Player>,
+    script: Vec<(u64, Scripted)>,
 }
 
 fn camera_from(pos: Vec3, yaw: f32, pitch: f32, fov_deg: f32, (w, h): (u32, u32)) -> Camera {
@@ -97,112 +122,33 @@ fn camera_from(pos: Vec3, yaw: f32, pitch: f32, fov_deg: f32, (w, h): (u32, u32)
     Camera::look_at(pos, pos + fwd, Vec3::Y, w, h, fx)
 }
 
+/// Centres of the scene's added lights, by name.
+fn light_centres(scene: &Scene) -> BTreeMap<String, Vec3> {
+    (scene.lights.iter())
+        .filter(|l| !l.original)
+        .map(|l| (l.name.clone(), l.shape.center()))
+        .collect()
+}
+
+/// The window's default size: two thirds of the screen's height at the frame's aspect (at most
+/// 90% of its width); without a screen to measure, three times the frame.
+fn default_window(res: (u32, u32), screen: Option<(u32, u32)>) -> (u32, u32) {
+    let aspect = res.0 as f32 / res.1 as f32;
+    match screen {
+        Some((sw, sh)) if sw > 0 && sh > 0 => {
+            let h = (sh as f32 * 2.0 / 3.0).min(sw as f32 * 0.9 / aspect);
+            (((h * aspect) as u32).max(1), (h as u32).max(1))
+        }
+        _ => (res.0 * 3, res.1 * 3),
+    }
+}
+
 impl App {
     fn camera(&self) -> Camera {
-        camera_from(self.pos, self.yaw, self.pitch, self.fov_deg, self.res)
-    }
-
-    fn create_swapchain(&mut self) -> Result<()> {
-        let gpu = &self.gpu;
-        let window = self.window.as_ref().unwrap();
-        let size = window.inner_size();
-        unsafe {
-            if let Some(old) = self.swap.take() {
-                gpu.device.device_wait_idle()?;
-                for s in &old.present_sems {
-                    gpu.device.destroy_semaphore(*s, None);
-                }
-                old.loader.destroy_swapchain(old.raw, None);
-            }
-            let sl = &self.surface_loader;
-            if !sl.get_physical_device_surface_support(
-                gpu.pdevice,
-                gpu.queue_family,
-                self.surface,
-            )? {
-                bail!("the Vulkan queue cannot present to this window");
-            }
-            let caps = sl.get_physical_device_surface_capabilities(gpu.pdevice, self.surface)?;
-            let formats = sl.get_physical_device_surface_formats(gpu.pdevice, self.surface)?;
-            // Frames arrive sRGB-encoded already: prefer a UNORM target (no second encoding).
-            let f = formats
-                .iter()
-                .find(|f| {
-                    matches!(
-                        f.format,
-                        vk::Format::B8G8R8A8_UNORM | vk::Format::R8G8B8A8_UNORM
-                    )
-                })
-                .or(formats.first())
-                .context("the surface offers no formats")?;
-            let extent = if caps.current_extent.width != u32::MAX {
-                caps.current_extent
-            } else {
-                vk::Extent2D {
-                    width: size
-                        .width
-                        .clamp(caps.min_image_extent.width, caps.max_image_extent.width),
-                    height: size
-                        .height
-                        .clamp(caps.min_image_extent.height, caps.max_image_extent.height),
-                }
-            };
-            let readable = caps
-                .supported_usage_flags
-                .contains(vk::ImageUsageFlags::TRANSFER_SRC);
-            let mut usage = vk::ImageUsageFlags::TRANSFER_DST;
-            if readable {
-                usage |= vk::ImageUsageFlags::TRANSFER_SRC;
-            }
-            let mut count = caps.min_image_count + 1;
-            if caps.max_image_count > 0 {
-                count = count.min(caps.max_image_count);
-            }
-            let alpha = [
-                vk::CompositeAlphaFlagsKHR::OPAQUE,
-                vk::CompositeAlphaFlagsKHR::INHERIT,
-                vk::CompositeAlphaFlagsKHR::PRE_MULTIPLIED,
-                vk::CompositeAlphaFlagsKHR::POST_MULTIPLIED,
-            ]
-            .into_iter()
-            .find(|a| caps.supported_composite_alpha.contains(*a))
-            .unwrap_or(vk::CompositeAlphaFlagsKHR::OPAQUE);
-            let loader = ash::khr::swapchain::Device::new(&gpu.instance, &gpu.device);
-            let raw = loader.create_swapchain(
-                &vk::SwapchainCreateInfoKHR::default()
-                    .surface(self.surface)
-                    .min_image_count(count)
-                    .image_format(f.format)
-                    .image_color_space(f.color_space)
-                    .image_extent(extent)
-                    .image_array_layers(1)
-                    .image_usage(usage)
-                    .image_sharing_mode(vk::SharingMode::EXCLUSIVE)
-                    .pre_transform(caps.current_transform)
-                    .composite_alpha(alpha)
-                    .present_mode(vk::PresentModeKHR::FIFO)
-                    .clipped(true),
-                None,
-            )?;
-            let images = loader.get_swapchain_images(raw)?;
-            let present_sems = images
-                .iter()
-                .map(|_| {
-                    gpu.device
-                        .create_semaphore(&vk::SemaphoreCreateInfo::default(), None)
-                })
-                .collect::<Result<Vec<_>, _>>()?;
-            self.swap = Some(Swap {
-                loader,
-                raw,
-                images,
-                format: f.format,
-                extent,
-                readable,
-                present_sems,
-            });
+        match &self.player {
+            Some(p) => p.path.camera_at(p.t, self.res.0, self.res.1),
+            None => camera_from(self.pos, self.yaw, self.pitch, self.fov_deg, self.res),
         }
-        Ok(())
     }
 
     fn update_camera(&mut self, dt: f32) {
@@ -221,6 +167,22 @@ impl App {
             (self.pitch + turn * (k(KeyCode::ArrowUp) - k(KeyCode::ArrowDown))).clamp(-1.5, 1.5);
     }
 
+    /// Everything a frame depends on that input can change.
+    fn signature(&self) -> Signature {
+        let cam = self.camera();
+        let mut s: Vec<f32> = cam.center().to_array().into();
+        s.extend(cam.rotation.to_cols_array());
+        s.extend(&self.lighting.intensities);
+        s.push(self.lighting.alpha_dim);
+        s.push(self.mode as u32 as f32);
+        for l in &self.scene.lights {
+            s.extend(l.shape.center().to_array());
+            s.extend(l.radiance);
+            s.push(light_size(&l.shape));
+        }
+        s
+    }
+
     fn key(&mut self, code: KeyCode, el: &ActiveEventLoop) {
         let cam = self.camera();
         match self.lights.key(
@@ -233,11 +195,21 @@ impl App {
         ) {
             Ok(true) => {
                 self.preset_name = "custom".into();
+                if code == KeyCode::F5 {
+                    self.home = light_centres(&self.scene);
+                }
                 return;
             }
             Ok(false) => {}
             Err(e) => eprintln!("{e:#}"),
         }
+        if let Err(e) = self.app_key(code, el) {
+            eprintln!("{e:#}");
+        }
+    }
+
+    /// Keys of the viewer itself (not the light editor's).
+    fn app_key(&mut self, code: KeyCode, el: &ActiveEventLoop) -> Result<()> {
         let lights = added_lights(&self.scene);
         match code {
             KeyCode::Escape => el.exit(),
@@ -262,10 +234,8 @@ impl App {
             | KeyCode::Digit9 => {
                 let i = code as usize - KeyCode::Digit1 as usize;
                 if let Some(p) = self.scene.presets.get(i) {
-                    if let Ok(l) = Lighting::preset(&self.scene, &p.name) {
-                        self.lighting = l;
-                        self.preset_name = p.name.clone();
-                    }
+                    self.lighting = Lighting::preset(&self.scene, &p.name)?;
+                    self.preset_name = p.name.clone();
                 }
             }
             KeyCode::Tab if !lights.is_empty() => {
@@ -274,13 +244,9 @@ impl App {
             KeyCode::Equal | KeyCode::NumpadAdd | KeyCode::Minus | KeyCode::NumpadSubtract
                 if !lights.is_empty() =>
             {
-                let d = if matches!(code, KeyCode::Equal | KeyCode::NumpadAdd) {
-                    0.1
-                } else {
-                    -0.1
-                };
+                let up = matches!(code, KeyCode::Equal | KeyCode::NumpadAdd);
                 let v = &mut self.lighting.intensities[self.selected_light];
-                *v = (*v + d).clamp(0.0, 10.0);
+                *v = (*v + if up { 0.1 } else { -0.1 }).clamp(0.0, 10.0);
                 self.preset_name = "custom".into();
             }
             KeyCode::BracketLeft | KeyCode::BracketRight => {
@@ -302,15 +268,77 @@ impl App {
                     Mode::RatioFilled => Mode::Network,
                 };
             }
+            KeyCode::KeyG => {
+                self.fluid.policy = self.fluid.policy.next();
+                println!("frames: {:?}", self.fluid.policy);
+            }
+            KeyCode::KeyH => self.hud_on = !self.hud_on,
+            KeyCode::F1 => self.help_on = !self.help_on,
+            KeyCode::KeyR => self.add_keyframe()?,
+            KeyCode::F6 => self.save_path()?,
+            KeyCode::KeyV => self.write_camera()?,
+            KeyCode::Space => {
+                if let Some(p) = &mut self.player {
+                    p.paused = !p.paused;
+                }
+            }
             KeyCode::KeyP => {
                 self.shots += 1;
-                self.screenshot_now = Some(PathBuf::from(format!(
-                    "relit-screenshot-{:03}.png",
-                    self.shots
-                )));
+                let name = format!("relit-screenshot-{:03}.png", self.shots);
+                self.screenshot_now = Some(PathBuf::from(name));
             }
             _ => {}
         }
+        Ok(())
+    }
+
+    fn add_keyframe(&mut self) -> Result<()> {
+        let Some((_, rec)) = &mut self.recorder else {
+            bail!("R drops a keyframe when recording: start the viewer with --record PATH.json");
+        };
+        let names = added_lights(&self.scene);
+        rec.add(Keyframe {
+            camera: camera_from(self.pos, self.yaw, self.pitch, self.fov_deg, self.res),
+            dim: self.lighting.alpha_dim,
+            intensities: names
+                .into_iter()
+                .zip(self.lighting.intensities.clone())
+                .collect(),
+            lights: light_centres(&self.scene),
+        });
+        println!("keyframe {}", rec.keys.len());
+        Ok(())
+    }
+
+    /// Writes the recorded path; lights it names must be in scene.json (F5 saves them).
+    fn save_path(&self) -> Result<()> {
+        let Some((file, rec)) = &self.recorder else {
+            bail!("F6 saves a recorded path: start the viewer with --record PATH.json");
+        };
+        let lit = rec.keys.iter().flat_map(|k| k.intensities.iter());
+        if let Some((name, _)) = lit
+            .filter(|(n, &v)| v != 0.0 && !self.home.contains_key(*n))
+            .next()
+        {
+            bail!("light \"{name}\" was added in the viewer and is not in scene.json, so `relit fly` would not know it: press F5 to save the lights, then F6");
+        }
+        rec.save(file, &self.home)?;
+        println!(
+            "path: {} ({} keyframes, {:.1} s)",
+            file.display(),
+            rec.keys.len(),
+            rec.times().last().copied().unwrap_or(0.0)
+        );
+        Ok(())
+    }
+
+    fn write_camera(&mut self) -> Result<()> {
+        self.cameras += 1;
+        let file = PathBuf::from(format!("relit-camera-{:03}.json", self.cameras));
+        let text = camera_json(&self.camera());
+        relit_engine::scene::write_atomic(&file, text.as_bytes())?;
+        println!("camera: {} (use it with --camera FILE)", file.display());
+        Ok(())
     }
 
     /// A light the bake has no entry for (`relit bake` bakes the presets' lights) is traced
@@ -337,317 +365,225 @@ impl App {
         Ok(())
     }
 
+    /// Playback: the path's time advances by `dt` (looping), its lighting and light moves apply.
+    fn advance_player(&mut self, dt: f32) -> Result<()> {
+        let Some(p) = &mut self.player else {
+            return Ok(());
+        };
+        if !p.paused {
+            let (t0, t1) = (p.path.start(), p.path.duration());
+            p.t += dt;
+            if p.t > t1 {
+                p.t = t0 + (p.t - t1) % (t1 - t0).max(1e-3);
+            }
+        }
+        if let Some(l) = p.path.lighting_at(p.t) {
+            self.lighting = Lighting::from_path(&self.scene, &l, &p.file)?;
+            self.preset_name = format!("path {}", p.file.display());
+        }
+        p.moves.apply(&mut self.renderer, &p.path, p.t)?;
+        Ok(())
+    }
+
+    fn run_script(&mut self, el: &ActiveEventLoop) {
+        let due: Vec<Scripted> = (self.script.iter())
+            .filter(|(f, _)| *f == self.frames_done)
+            .map(|(_, k)| *k)
+            .collect();
+        for item in due {
+            match item {
+                Scripted::Press(k) => self.key(k, el),
+                Scripted::Hold(k) => {
+                    self.held.insert(k);
+                }
+                Scripted::Release(k) => {
+                    self.held.remove(&k);
+                }
+                Scripted::Size(w, h) => {
+                    if let Some(win) = &self.window {
+                        let _ = win.request_inner_size(winit::dpi::PhysicalSize::new(w, h));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Renders the frame `next` asks for; returns its wall time.
+    fn render(&mut self, next: Next) -> Result<()> {
+        let full = self.camera();
+        let (cam, mode) = match next {
+            Next::Moving { divisor } => {
+                let (w, h) = moving_res(self.res, divisor);
+                let mode = if self.mode == Mode::Ulr {
+                    Mode::Ulr
+                } else {
+                    Mode::Ratio
+                };
+                (crate::render::rescale(&full, w, h), mode)
+            }
+            _ => (full, self.mode),
+        };
+        let mut timer = Timer::new(&self.gpu, 64)?;
+        let t0 = Instant::now();
+        (self.renderer).render(&cam, &self.lighting, mode, self.exposure, Some(&mut timer))?;
+        let secs = t0.elapsed().as_secs_f64();
+        self.fluid.rendered(next, secs);
+        self.shown = (next, secs, timer.read()?);
+        Ok(())
+    }
+
+    fn hud(&self) -> Option<HudText> {
+        if self.help_on {
+            return Some(HudText::new(&key_lines()));
+        }
+        if !self.hud_on {
+            return None;
+        }
+        let (next, secs, passes) = &self.shown;
+        let frame = match next {
+            Next::Moving { divisor } => {
+                let (w, h) = moving_res(self.res, *divisor);
+                format!("moving {w}x{h} ratio")
+            }
+            _ => format!("still {}x{}", self.res.0, self.res.1),
+        };
+        let info = HudInfo {
+            fps: (1.0 / secs.max(1e-6)) as f32,
+            passes: passes.clone(),
+            mode: format!("{:?}", self.mode),
+            frame,
+            policy: format!("{:?}", self.fluid.policy).to_lowercase(),
+            lighting: self.preset_name.clone(),
+            alpha_dim: self.lighting.alpha_dim,
+            light: self.light_info(),
+            recording: self.recorder.as_ref().map(|(_, r)| r.keys.len()),
+            playing: (self.player.as_ref()).map(|p| (p.t, p.path.duration())),
+        };
+        Some(HudText::new(&info.lines()))
+    }
+
+    fn light_info(&self) -> Option<LightInfo> {
+        let added: Vec<_> = self.scene.lights.iter().filter(|l| !l.original).collect();
+        let l = added.get(self.selected_light)?;
+        let progress = self.renderer.live.progress();
+        let live = (progress.iter())
+            .find(|(layer, _)| *layer as usize == self.selected_light)
+            .map(|(_, p)| (*p, self.renderer.live.params.paths));
+        Some(LightInfo {
+            name: l.name.clone(),
+            position: l.shape.center().into(),
+            size: light_size(&l.shape),
+            colour: l.radiance,
+            intensity: self.lighting.intensities[self.selected_light],
+            live,
+        })
+    }
+
     fn draw(&mut self, el: &ActiveEventLoop) -> Result<()> {
+        let Some(window) = self.window.clone() else {
+            return Ok(());
+        };
+        let size = window.inner_size();
         // A minimized window has no area to present to.
-        if self.window.as_ref().is_some_and(|w| {
-            let s = w.inner_size();
-            s.width == 0 || s.height == 0
-        }) {
+        if size.width == 0 || size.height == 0 {
             return Ok(());
         }
         let now = Instant::now();
         let dt = (now - self.last).as_secs_f32().min(0.5);
         self.last = now;
-        self.update_camera(dt);
-        let due: Vec<KeyCode> = self
-            .script
-            .iter()
-            .filter(|(f, _)| *f == self.frames_done)
-            .map(|(_, k)| *k)
-            .collect();
-        for k in due {
-            self.key(k, el);
+        self.run_script(el);
+        if self.player.is_some() {
+            self.advance_player(dt)?;
+        } else {
+            self.update_camera(dt);
         }
         self.trace_unbaked_lights_live()?;
         // Live lights: a few more paths per texel of their caches each frame.
-        self.renderer.refine_live()?;
-        let cam = self.camera();
-        let mut timer = Timer::new(&self.gpu, 64)?;
-        self.renderer.render(
-            &cam,
-            &self.lighting,
-            self.mode,
-            self.exposure,
-            Some(&mut timer),
-        )?;
-        let spans = timer.read()?;
-        let gpu = self.gpu.clone();
-        let (w, h) = self.res;
-        if self
-            .frame_img
-            .as_ref()
-            .is_none_or(|i| (i.width, i.height) != (w, h))
-        {
-            self.frame_img = Some(Image::new(
-                &gpu,
-                "view frame",
-                vk::Format::R8G8B8A8_UNORM,
-                w,
-                h,
-                1,
-                vk::ImageUsageFlags::SAMPLED,
-            )?);
+        let refined = self.renderer.refine_live()?;
+        let sig = self.signature();
+        let changed = self.signature.as_ref() != Some(&sig);
+        self.signature = Some(sig);
+        let next = (self.fluid).next(changed, refined, self.start.elapsed().as_secs_f64());
+        if next != Next::Keep {
+            self.render(next)?;
+            self.stale = true;
         }
-        if self.swap.is_none() {
-            self.create_swapchain()?;
+        let hud = self.hud();
+        if hud != self.last_hud {
+            self.stale = true;
         }
-        let swap = self.swap.as_ref().unwrap();
-        let idx = match unsafe {
-            swap.loader
-                .acquire_next_image(swap.raw, u64::MAX, self.acquire_sem, vk::Fence::null())
-        } {
-            Ok((i, _)) => i,
-            Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => {
-                self.create_swapchain()?;
-                return Ok(());
-            }
-            Err(e) => return Err(e.into()),
+        let shot = match (self.screenshot_now.take(), &self.screenshot_at_end) {
+            (Some(p), _) => Some(p),
+            (None, Some(p)) if self.max_frames == Some(self.frames_done + 1) => Some(p.clone()),
+            _ => None,
         };
-        let target = swap.images[idx as usize];
-        let ext = swap.extent;
-        let shot = if self.frames_done + 1 == self.max_frames.unwrap_or(u64::MAX) {
-            self.screenshot_at_end
-                .clone()
-                .or(self.screenshot_now.take())
+        if self.stale || shot.is_some() {
+            self.present((size.width, size.height), hud.as_ref())?;
+            self.last_hud = hud;
         } else {
-            self.screenshot_now.take()
-        };
-        let read_back = shot.is_some() && swap.readable;
-        // Only a screenshot needs the window's pixels back.
-        let readback = Buffer::new(
-            &gpu,
-            "screenshot",
-            if read_back {
-                (ext.width * ext.height * 4) as u64
-            } else {
-                4
-            },
-            vk::BufferUsageFlags::TRANSFER_DST,
-            MemoryLocation::GpuToCpu,
-        )?;
-        let fimg = self.frame_img.as_ref().unwrap();
-        let ldr = &self.renderer.buffers_ref().unwrap().ldr;
-        let color = vk::ImageAspectFlags::COLOR;
-        let layers = vk::ImageSubresourceLayers::default()
-            .aspect_mask(color)
-            .layer_count(1);
-        let present_sem = swap.present_sems[idx as usize];
-        gpu.submit_sync(
-            &[(self.acquire_sem, vk::PipelineStageFlags::TRANSFER)],
-            &[present_sem],
-            |cmd| unsafe {
-                let d = &gpu.device;
-                image_barrier(
-                    &gpu,
-                    cmd,
-                    fimg.raw,
-                    color,
-                    vk::ImageLayout::UNDEFINED,
-                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                );
-                d.cmd_copy_buffer_to_image(
-                    cmd,
-                    ldr.raw,
-                    fimg.raw,
-                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                    &[vk::BufferImageCopy::default()
-                        .image_subresource(layers)
-                        .image_extent(vk::Extent3D {
-                            width: w,
-                            height: h,
-                            depth: 1,
-                        })],
-                );
-                image_barrier(
-                    &gpu,
-                    cmd,
-                    fimg.raw,
-                    color,
-                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                    vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-                );
-                image_barrier(
-                    &gpu,
-                    cmd,
-                    target,
-                    color,
-                    vk::ImageLayout::UNDEFINED,
-                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                );
-                let same = (w, h) == (ext.width, ext.height);
-                d.cmd_blit_image(
-                    cmd,
-                    fimg.raw,
-                    vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-                    target,
-                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                    &[vk::ImageBlit::default()
-                        .src_subresource(layers)
-                        .src_offsets([
-                            vk::Offset3D::default(),
-                            vk::Offset3D {
-                                x: w as i32,
-                                y: h as i32,
-                                z: 1,
-                            },
-                        ])
-                        .dst_subresource(layers)
-                        .dst_offsets([
-                            vk::Offset3D::default(),
-                            vk::Offset3D {
-                                x: ext.width as i32,
-                                y: ext.height as i32,
-                                z: 1,
-                            },
-                        ])],
-                    if same {
-                        vk::Filter::NEAREST
-                    } else {
-                        vk::Filter::LINEAR
-                    },
-                );
-                let mut layout = vk::ImageLayout::TRANSFER_DST_OPTIMAL;
-                if read_back {
-                    image_barrier(
-                        &gpu,
-                        cmd,
-                        target,
-                        color,
-                        layout,
-                        vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-                    );
-                    layout = vk::ImageLayout::TRANSFER_SRC_OPTIMAL;
-                    d.cmd_copy_image_to_buffer(
-                        cmd,
-                        target,
-                        layout,
-                        readback.raw,
-                        &[vk::BufferImageCopy::default()
-                            .image_subresource(layers)
-                            .image_extent(vk::Extent3D {
-                                width: ext.width,
-                                height: ext.height,
-                                depth: 1,
-                            })],
-                    );
-                }
-                image_barrier(
-                    &gpu,
-                    cmd,
-                    target,
-                    color,
-                    layout,
-                    vk::ImageLayout::PRESENT_SRC_KHR,
-                );
-            },
-        )?;
-        let sems = [present_sem];
-        let scs = [swap.raw];
-        let idxs = [idx];
-        let present = unsafe {
-            swap.loader.queue_present(
-                gpu.queue,
-                &vk::PresentInfoKHR::default()
-                    .wait_semaphores(&sems)
-                    .swapchains(&scs)
-                    .image_indices(&idxs),
-            )
-        };
-        match present {
-            Ok(false) => {}
-            Ok(true) | Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => self.swap = None,
-            Err(e) => return Err(e.into()),
+            // Nothing new to show: do not spin a core.
+            std::thread::sleep(std::time::Duration::from_millis(5));
         }
         if let Some(path) = shot {
-            self.save_screenshot(&path, read_back, &readback, ext)?;
+            self.save_screenshot(&path)?;
         }
         self.frames_done += 1;
-        self.fps = if self.fps == 0.0 {
-            1.0 / dt.max(1e-3)
-        } else {
-            0.8 * self.fps + 0.2 / dt.max(1e-3)
-        };
-        let passes: Vec<String> = spans
-            .iter()
-            .filter(|(l, _)| {
-                !l.starts_with("net: level") && !l.starts_with("net: ") || l == "net: trunk"
-            })
-            .map(|(l, ms)| format!("{l} {ms:.0}"))
-            .collect();
-        let net_ms: f64 = spans
-            .iter()
-            .filter(|(l, _)| l.starts_with("net: "))
-            .map(|s| s.1)
-            .sum();
-        let light = added_lights(&self.scene)
-            .get(self.selected_light)
-            .map(|n| {
-                let live = self
-                    .renderer
-                    .live
-                    .progress()
-                    .iter()
-                    .find(|(l, _)| *l as usize == self.selected_light)
-                    .map(|(_, p)| format!(" (cache {p}/{} paths)", self.renderer.live.params.paths))
-                    .unwrap_or_default();
-                format!(
-                    " | light {n} {:.1}{live}",
-                    self.lighting.intensities[self.selected_light]
-                )
-            })
-            .unwrap_or_default();
-        if let Some(win) = &self.window {
-            win.set_title(&format!(
-                "relit — {:.2} fps | {:?} | {} | dim {:.2}{light} | ms: {}{}",
-                self.fps,
-                self.mode,
-                self.preset_name,
-                self.lighting.alpha_dim,
-                passes.join(", "),
-                if net_ms > 0.0 {
-                    format!(", network {net_ms:.0}")
-                } else {
-                    String::new()
-                }
-            ));
-        }
+        window.set_title(&format!(
+            "relit — {} — {:.1} fps ({})",
+            self.scene.root.display(),
+            1.0 / self.shown.1.max(1e-6),
+            if self.fluid.showing_still() {
+                "still"
+            } else {
+                "moving"
+            }
+        ));
         if self.max_frames.is_some_and(|n| self.frames_done >= n) {
             el.exit();
         }
         Ok(())
     }
 
-    fn save_screenshot(
-        &self,
-        path: &Path,
-        from_window: bool,
-        buf: &Buffer,
-        ext: vk::Extent2D,
-    ) -> Result<()> {
-        let (w, h, rgba) = if from_window {
-            let mut px = buf.download_range(0, (ext.width * ext.height * 4) as u64)?;
-            let bgr = matches!(
-                self.swap.as_ref().map(|s| s.format),
-                Some(vk::Format::B8G8R8A8_UNORM | vk::Format::B8G8R8A8_SRGB)
-            );
-            if bgr {
-                px.chunks_exact_mut(4).for_each(|p| p.swap(0, 2));
-            }
-            (ext.width, ext.height, px)
-        } else {
-            (self.res.0, self.res.1, self.renderer.ldr()?)
-        };
+    /// Composes the last frame and the HUD at the window's size and presents it.
+    fn present(&mut self, size: (u32, u32), hud: Option<&HudText>) -> Result<()> {
+        let presenter = self.presenter.as_mut().context("no window")?;
+        let b = self.renderer.buffers_ref().context("no frame rendered")?;
+        let created = presenter.created;
+        presenter.extent(size)?;
+        let bgr = presenter.bgr();
+        let compose = &mut self.compose;
+        let shown = presenter.present(size, |cmd, ext| {
+            compose.record(cmd, &b.ldr, (b.width, b.height), ext, hud, bgr)?;
+            Ok(compose.output().raw)
+        })?;
+        if presenter.created != created {
+            let (w, h) = compose.size();
+            let mode = presenter.mode.map(|m| format!("{m:?}")).unwrap_or_default();
+            println!("swapchain: {w}x{h}, present mode {}", mode.to_lowercase());
+        }
+        // Out of date: made again, shown next time round.
+        self.stale = !shown;
+        Ok(())
+    }
+
+    fn save_screenshot(&self, path: &std::path::Path) -> Result<()> {
+        let presenter = self.presenter.as_ref().context("no window")?;
+        let rgba = self.compose.download_rgba(presenter.bgr())?;
+        let (w, h) = self.compose.size();
         relit_engine::scene::image::write_png_rgba8(path, w, h, &rgba)?;
         println!(
-            "screenshot: {} ({w}x{h}{})",
-            path.display(),
-            if from_window {
-                ", read back from the window"
-            } else {
-                ""
-            }
+            "screenshot: {} ({w}x{h}, the window's picture)",
+            path.display()
         );
         Ok(())
+    }
+}
+
+/// A light's size as the HUD shows it: a disk's radius, a quad's longer edge.
+fn light_size(s: &LightShape) -> f32 {
+    match s {
+        LightShape::Disk { radius, .. } => *radius,
+        LightShape::Quad { edge_u, edge_v, .. } => edge_u.length().max(edge_v.length()),
     }
 }
 
@@ -656,23 +592,25 @@ impl ApplicationHandler for App {
         if self.window.is_some() {
             return;
         }
+        let screen = (el
+            .primary_monitor()
+            .or_else(|| el.available_monitors().next()))
+        .map(|m| (m.size().width, m.size().height));
+        let (w, h) = self.window_size.unwrap_or(default_window(self.res, screen));
         let attrs = Window::default_attributes()
             .with_title("relit")
-            .with_inner_size(winit::dpi::PhysicalSize::new(self.res.0, self.res.1))
+            .with_inner_size(winit::dpi::PhysicalSize::new(w, h))
             .with_fullscreen(self.fullscreen.then_some(Fullscreen::Borderless(None)));
         let res = (|| -> Result<()> {
             let window = Arc::new(el.create_window(attrs)?);
-            self.surface = unsafe {
-                ash_window::create_surface(
-                    &self.gpu.entry,
-                    &self.gpu.instance,
-                    window.display_handle()?.as_raw(),
-                    window.window_handle()?.as_raw(),
-                    None,
-                )?
-            };
+            self.presenter = Some(Presenter::new(
+                &self.gpu,
+                window.display_handle()?.as_raw(),
+                window.window_handle()?.as_raw(),
+                self.wanted_present,
+            )?);
             self.window = Some(window);
-            self.create_swapchain()
+            Ok(())
         })();
         if let Err(e) = res {
             self.error = Some(e.context("opening the window"));
@@ -683,7 +621,12 @@ impl ApplicationHandler for App {
     fn window_event(&mut self, el: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
         match event {
             WindowEvent::CloseRequested => el.exit(),
-            WindowEvent::Resized(_) => self.swap = None,
+            WindowEvent::Resized(_) => {
+                if let Some(p) = &mut self.presenter {
+                    p.invalidate();
+                }
+                self.stale = true;
+            }
             WindowEvent::KeyboardInput { event, .. } => {
                 if let PhysicalKey::Code(code) = event.physical_key {
                     if event.state == ElementState::Pressed {
@@ -729,45 +672,65 @@ impl ApplicationHandler for App {
     }
 }
 
+fn open_player(
+    gpu: &Arc<Gpu>,
+    scene: &Scene,
+    file: &std::path::Path,
+    a: &crate::render::FrameArgs,
+) -> Result<Player> {
+    let path = CameraPath::load(file)?;
+    let params = crate::render::find_bake(scene, a.quality)?;
+    let moves = PathMoves::new(gpu, scene, &params, &path, &mut |_: &str, _, _, _| {})?;
+    Ok(Player {
+        file: file.to_path_buf(),
+        t: path.start(),
+        path,
+        moves,
+        paused: false,
+    })
+}
+
 pub fn view(opts: &GpuOptions, a: ViewArgs) -> Result<()> {
+    if a.record.is_some() && a.play.is_some() {
+        bail!("--record and --play: give one of them");
+    }
     let el =
         EventLoop::new().context("opening the display (is DISPLAY or WAYLAND_DISPLAY set?)")?;
-    let exts = ash_window::enumerate_required_extensions(el.display_handle()?.as_raw())
-        .context("the window system has no Vulkan surface extension")?;
     let mut o = opts.clone();
-    // The pointers name static extension strings of ash.
-    o.instance_extensions = exts.iter().map(|&p| unsafe { CStr::from_ptr(p) }).collect();
+    o.instance_extensions = present::surface_extensions(el.display_handle()?.as_raw())?;
     o.swapchain = true;
     let scene = Scene::load(&a.scene)?;
     let gpu = crate::open_gpu(&o)?;
+    let player = match &a.play {
+        Some(f) => Some(open_player(&gpu, &scene, f, &a.frame)?),
+        None => None,
+    };
     let lighting = match &a.lighting {
         Some(p) => Lighting::preset(&scene, p)?,
         None => Lighting::original(&scene),
     };
-    // Frames render at --res whatever the window size (then scaled to it). The start lighting's
-    // lights are baked now if need be; others are traced live when first lit.
-    let used = Some(crate::render::lit(&scene, &lighting));
-    let (renderer, mode) =
+    // The start lighting's lights (or the path's) are baked now if need be; others are traced
+    // live when first lit.
+    let used = Some(match &player {
+        Some(p) => p.path.lit_lights(),
+        None => crate::render::lit(&scene, &lighting),
+    });
+    let (mut renderer, mode) =
         crate::render::open_renderer(&gpu, &scene, &a.frame, Some(a.res), used, true)?;
+    renderer.display_only = true;
     let start = match &a.camera {
         Some(c) => crate::render::resolve_camera(&scene, c, Some(a.res))?,
         None => crate::render::rescale(&scene.views[0].camera, a.res.0, a.res.1),
     };
     // Yaw/pitch of the start camera's forward axis (camera rows: right, down, forward).
     let fwd = start.rotation.row(2);
-    let surface_loader = ash::khr::surface::Instance::new(&gpu.entry, &gpu.instance);
-    let acquire_sem = unsafe {
-        gpu.device
-            .create_semaphore(&vk::SemaphoreCreateInfo::default(), None)?
-    };
-    let script = a
-        .keys
-        .as_deref()
+    let script = (a.keys.as_deref())
         .map(crate::view_lights::parse_script)
         .transpose()?
         .unwrap_or_default();
     let mut app = App {
         lights: crate::view_lights::LightEditor::new(&renderer),
+        compose: Compose::new(&gpu)?,
         script,
         renderer,
         mode,
@@ -780,46 +743,49 @@ pub fn view(opts: &GpuOptions, a: ViewArgs) -> Result<()> {
         fov_deg: 2.0 * (start.width as f32 * 0.5 / start.fx).atan().to_degrees(),
         res: a.res,
         exposure: a.frame.exposure,
+        window_size: a.window,
         window: None,
-        surface_loader,
-        surface: vk::SurfaceKHR::null(),
-        swap: None,
-        acquire_sem,
-        frame_img: None,
+        presenter: None,
+        wanted_present: a.present,
         held: HashSet::new(),
         dragging: false,
         last_cursor: None,
+        start: Instant::now(),
         last: Instant::now(),
-        fps: 0.0,
+        fluid: Fluid::new(a.fluid),
+        signature: None,
+        shown: (Next::Keep, 0.0, Vec::new()),
+        hud_on: a.hud,
+        help_on: false,
+        last_hud: None,
+        stale: true,
         frames_done: 0,
         max_frames: a.frames,
         screenshot_at_end: a.screenshot.clone(),
         screenshot_now: None,
         shots: 0,
+        cameras: 0,
         fullscreen: a.fullscreen,
         error: None,
+        home: light_centres(&scene),
+        recorder: a.record.clone().map(|f| (f, PathRecorder::default())),
+        player,
         scene,
         gpu: gpu.clone(),
     };
     let run = el.run_app(&mut app);
-    unsafe {
-        let _ = gpu.device.device_wait_idle();
-        if let Some(s) = app.swap.take() {
-            for x in &s.present_sems {
-                gpu.device.destroy_semaphore(*x, None);
-            }
-            s.loader.destroy_swapchain(s.raw, None);
-        }
-        gpu.device.destroy_semaphore(app.acquire_sem, None);
-        if app.surface != vk::SurfaceKHR::null() {
-            app.surface_loader.destroy_surface(app.surface, None);
-        }
-    }
+    // The recorded path is saved on exit, whatever ended the viewer.
+    let saved = match &app.recorder {
+        Some((_, r)) if !r.keys.is_empty() => app.save_path(),
+        _ => Ok(()),
+    };
+    app.presenter = None;
     app.window = None;
     if let Some(e) = app.error.take() {
         return Err(e);
     }
     run.context("the window event loop")?;
+    saved?;
     if a.frames.is_some() && app.frames_done == 0 {
         bail!("no frame was shown");
     }

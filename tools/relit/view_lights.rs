@@ -199,10 +199,23 @@ pub const REPEATS: [KeyCode; 8] = [
     KeyCode::Period,
 ];
 
-/// Parses `--keys`: comma-separated `FRAME:KEY` presses, KEY a letter, a digit, Tab, F5,
-/// Comma, Period, Plus, Minus, [ or ]; e.g. "2:N,4:J,4:J" adds a lamp at frame 2 and moves it
-/// 20 cm left at frame 4.
-pub fn parse_script(s: &str) -> Result<Vec<(u64, KeyCode)>> {
+/// One scripted input of `--keys`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scripted {
+    /// A press (and release) of a key.
+    Press(KeyCode),
+    /// A key held down from this frame on, or let go.
+    Hold(KeyCode),
+    Release(KeyCode),
+    /// A request for this window size (a resize).
+    Size(u32, u32),
+}
+
+/// Parses `--keys`: comma-separated `FRAME:KEY` presses, `FRAME:+KEY` / `FRAME:-KEY` to hold a
+/// key down and let it go, `FRAME:size=WxH` to resize the window. KEY is a letter, a digit,
+/// Tab, Space, F1, F5, F6, Comma, Period, Plus, Minus, [ or ]; e.g. "2:N,4:J,4:J" adds a lamp at
+/// frame 2 and moves it 20 cm left at frame 4; "1:+W,5:-W" walks forward for four frames.
+pub fn parse_script(s: &str) -> Result<Vec<(u64, Scripted)>> {
     s.split(',')
         .filter(|x| !x.trim().is_empty())
         .map(|item| {
@@ -212,9 +225,20 @@ pub fn parse_script(s: &str) -> Result<Vec<(u64, KeyCode)>> {
             let frame: u64 = f.parse().map_err(|_| {
                 anyhow::anyhow!("--keys: \"{item}\": frame \"{f}\" is not a whole number")
             })?;
-            Ok((frame, key_code(k).ok_or_else(|| {
-                anyhow::anyhow!("--keys: \"{item}\": unknown key \"{k}\" (letters, digits, Tab, F5, Comma, Period, Plus, Minus, [, ])")
-            })?))
+            let unknown = || {
+                anyhow::anyhow!("--keys: \"{item}\": unknown key \"{k}\" (letters, digits, Tab, Space, F1, F5, F6, Comma, Period, Plus, Minus, [, ]; +KEY holds, -KEY lets go; size=WxH resizes)")
+            };
+            let what = if let Some(size) = k.strip_prefix("size=") {
+                let (w, h) = crate::parse_res(size).map_err(|e| anyhow::anyhow!("--keys: \"{item}\": {e}"))?;
+                Scripted::Size(w, h)
+            } else if let Some(key) = k.strip_prefix('+').filter(|r| !r.is_empty()) {
+                Scripted::Hold(key_code(key).ok_or_else(unknown)?)
+            } else if let Some(key) = k.strip_prefix('-').filter(|r| !r.is_empty()) {
+                Scripted::Release(key_code(key).ok_or_else(unknown)?)
+            } else {
+                Scripted::Press(key_code(k).ok_or_else(unknown)?)
+            };
+            Ok((frame, what))
         })
         .collect()
 }
@@ -231,7 +255,10 @@ fn key_code(k: &str) -> Option<KeyCode> {
     let c = k.chars().next()?;
     Some(match k {
         "Tab" => Tab,
+        "Space" => Space,
+        "F1" => F1,
         "F5" => F5,
+        "F6" => F6,
         "Comma" => Comma,
         "Period" => Period,
         "Plus" => Equal,

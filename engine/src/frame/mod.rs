@@ -459,12 +459,18 @@ pub struct Renderer {
     target_mirror: Pipeline,
     features: Pipeline,
     output: Pipeline,
-    bufs: Option<FrameBuffers>,
+    /// Buffers per resolution, the last frame's first: the viewer alternates a reduced
+    /// resolution while moving with the full one when still, so two stay allocated.
+    bufs: Vec<FrameBuffers>,
     /// An input view left out of every pass (leave-one-out inputs for training on input
     /// views: `relit dump` of an input camera).
     pub exclude: Option<u32>,
     /// Lights being placed or moved (the viewer).
     pub live: live::LiveLights,
+    /// Skip the passes that only feed the network (target mirror, features) in the modes that
+    /// do not run it: ratio and ULR frames for the screen cost half as much. Off by default,
+    /// since `relit dump` and the tests read those passes' buffers after a ULR frame.
+    pub display_only: bool,
 }
 
 /// Near and far planes of the novel view's G-buffer (m).
@@ -508,57 +514,68 @@ impl Renderer {
             scene,
             net,
             storage,
-            bufs: None,
+            bufs: Vec::new(),
             exclude: None,
+            display_only: false,
         })
     }
 
+    /// At most this many resolutions keep their buffers.
+    const RESOLUTIONS: usize = 2;
+
     fn buffers(&mut self, width: u32, height: u32) -> Result<&FrameBuffers> {
-        if self
-            .bufs
-            .as_ref()
-            .is_none_or(|b| (b.width, b.height) != (width, height))
-        {
-            self.bufs = None;
-            let gpu = &self.gpu;
-            let n = (width * height) as u64;
-            let buf = |name: &str, size: u64| {
-                Buffer::new(
-                    gpu,
-                    name,
-                    size.max(16),
-                    vk::BufferUsageFlags::STORAGE_BUFFER,
-                    MemoryLocation::GpuOnly,
-                )
-            };
-            let nl = self.scene.lights.len().max(1) as u64;
-            self.bufs = Some(FrameBuffers {
-                width,
-                height,
-                gbuf: Gbuffer::new(gpu, width, height)?,
-                comp: buf("frame composites", reproject::PLANES as u64 * n * 8)?,
-                irr: buf("frame irradiance", irradiance::PLANES as u64 * n * 16)?,
-                mirror: buf("frame target mirror", n * 16)?,
-                active: buf("frame active views", MAX_ACTIVE as u64 * 4)?,
-                intensity: buf("frame intensities", nl * 4)?,
-                input: Tensor::new(
-                    gpu,
-                    "frame input",
-                    INPUT_CHANNELS,
-                    height,
-                    width,
-                    self.storage,
-                )?,
-                hdr: buf("frame hdr", n * 16)?,
-                ldr: buf("frame ldr", n * 4)?,
-                net: match &self.net {
-                    Some(net) => Some(net.buffers(height, width)?),
-                    None => None,
-                },
-                dummy_net_out: Tensor::new(gpu, "no network", 6, 1, 1, self.storage)?,
-            });
+        match (self.bufs.iter()).position(|b| (b.width, b.height) == (width, height)) {
+            Some(i) => {
+                let b = self.bufs.remove(i);
+                self.bufs.insert(0, b);
+            }
+            None => {
+                self.bufs.truncate(Self::RESOLUTIONS - 1);
+                let b = self.new_buffers(width, height)?;
+                self.bufs.insert(0, b);
+            }
         }
-        Ok(self.bufs.as_ref().unwrap())
+        Ok(&self.bufs[0])
+    }
+
+    fn new_buffers(&self, width: u32, height: u32) -> Result<FrameBuffers> {
+        let gpu = &self.gpu;
+        let n = (width * height) as u64;
+        let buf = |name: &str, size: u64| {
+            Buffer::new(
+                gpu,
+                name,
+                size.max(16),
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                MemoryLocation::GpuOnly,
+            )
+        };
+        let nl = self.scene.lights.len().max(1) as u64;
+        Ok(FrameBuffers {
+            width,
+            height,
+            gbuf: Gbuffer::new(gpu, width, height)?,
+            comp: buf("frame composites", reproject::PLANES as u64 * n * 8)?,
+            irr: buf("frame irradiance", irradiance::PLANES as u64 * n * 16)?,
+            mirror: buf("frame target mirror", n * 16)?,
+            active: buf("frame active views", MAX_ACTIVE as u64 * 4)?,
+            intensity: buf("frame intensities", nl * 4)?,
+            input: Tensor::new(
+                gpu,
+                "frame input",
+                INPUT_CHANNELS,
+                height,
+                width,
+                self.storage,
+            )?,
+            hdr: buf("frame hdr", n * 16)?,
+            ldr: buf("frame ldr", n * 4)?,
+            net: match &self.net {
+                Some(net) => Some(net.buffers(height, width)?),
+                None => None,
+            },
+            dummy_net_out: Tensor::new(gpu, "no network", 6, 1, 1, self.storage)?,
+        })
     }
 
     /// Places added light `layer` (a new one when `layer` is the count of added lights) at
@@ -571,7 +588,7 @@ impl Renderer {
         self.scene.set_emitter(layer, light)?;
         if self.scene.lights.len() != before {
             // The intensity buffer holds one float per added light.
-            self.bufs = None;
+            self.bufs.clear();
         }
         Ok(())
     }
@@ -600,7 +617,7 @@ impl Renderer {
     /// One refinement step of the live lights' caches; whether anything changed.
     pub fn refine_live(&mut self) -> Result<bool> {
         // The texels the last frame shows converge first: what the user looks at.
-        let focus = match &self.bufs {
+        let focus = match self.bufs.first() {
             Some(b) if self.live.count() > 0 => {
                 let tri: Vec<u32> =
                     bytemuck::pod_collect_to_vec(&b.gbuf.tri.download(vk::ImageLayout::GENERAL)?);
@@ -643,7 +660,7 @@ impl Renderer {
         }
         let (width, height) = (cam.width, cam.height);
         self.buffers(width, height)?;
-        let b = self.bufs.as_ref().unwrap();
+        let b = &self.bufs[0];
         let eye = cam.center();
         let active = select_active(&self.scene.data.cameras, eye, self.exclude);
         b.active.upload(bytemuck::cast_slice(&active))?;
@@ -743,32 +760,37 @@ impl Renderer {
                     };
                     pass(&self.irradiance, &b.irr, bytes_of(&push))?;
                 });
-                timed!("target mirror", {
-                    let push = target_mirror::Push {
-                        eye: e4,
-                        width,
-                        height,
-                        view_w: vw,
-                        view_h: vh,
-                        nviews: s.views.count,
-                        nlights,
-                        alpha_dim: lighting.alpha_dim,
-                        exclude: self.exclude.unwrap_or(u32::MAX),
-                        nlive,
-                        live_mask,
-                    };
-                    pass(&self.target_mirror, &b.mirror, bytes_of(&push))?;
-                });
+                let inputs = mode.needs_network() || !self.display_only;
+                if inputs {
+                    timed!("target mirror", {
+                        let push = target_mirror::Push {
+                            eye: e4,
+                            width,
+                            height,
+                            view_w: vw,
+                            view_h: vh,
+                            nviews: s.views.count,
+                            nlights,
+                            alpha_dim: lighting.alpha_dim,
+                            exclude: self.exclude.unwrap_or(u32::MAX),
+                            nlive,
+                            live_mask,
+                        };
+                        pass(&self.target_mirror, &b.mirror, bytes_of(&push))?;
+                    });
+                }
                 full_barrier(&gpu, cmd);
-                timed!("features", {
-                    let push = features::Push {
-                        eye: e4,
-                        width,
-                        height,
-                    };
-                    pass(&self.features, &b.comp, bytes_of(&push))?;
-                    full_barrier(&gpu, cmd);
-                });
+                if inputs {
+                    timed!("features", {
+                        let push = features::Push {
+                            eye: e4,
+                            width,
+                            height,
+                        };
+                        pass(&self.features, &b.comp, bytes_of(&push))?;
+                        full_barrier(&gpu, cmd);
+                    });
+                }
                 if mode.needs_network() {
                     let (net, nb) = (self.net.as_ref().unwrap(), b.net.as_ref().unwrap());
                     net.record(cmd, nb, &b.input, timer.as_deref_mut())?;
@@ -806,7 +828,7 @@ impl Renderer {
 
     /// The buffers of the last [`Renderer::render`] (composites: [`FrameBuffers::composites`]).
     pub fn buffers_ref(&self) -> Option<&FrameBuffers> {
-        self.bufs.as_ref()
+        self.bufs.first()
     }
 
     /// Linear RGB of the last frame.
@@ -826,7 +848,7 @@ impl Renderer {
 
     fn last(&self) -> Result<&FrameBuffers> {
         self.bufs
-            .as_ref()
+            .first()
             .ok_or_else(|| Error::Other("no frame rendered yet".into()))
     }
 }

@@ -6,6 +6,7 @@ mod device;
 pub mod gather;
 mod memory;
 mod pipeline;
+pub mod present;
 mod timer;
 
 pub use accel::{AccelStruct, RayScene};
@@ -18,6 +19,7 @@ pub use pipeline::{
     layout_source, reflect, shaders, spirv, Bind, GraphicsDesc, Pipeline, PushLayout, Reflected,
     Sampler, Shader,
 };
+pub use present::{PresentMode, Presenter};
 pub use timer::Timer;
 
 pub use ash::vk;
