@@ -13,6 +13,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo="$(pwd)"
+# Host-built binaries run inside the root at their own paths: the build directory is mounted
+# there too when it is outside the repository (tools/test.sh keeps it in ~/.cache).
+target="$(cargo metadata --no-deps --format-version 1 2>/dev/null \
+  | python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')"
 root="${RELIT_LP26_ROOT:-$HOME/.cache/relit/trixie-root}"
 mirror="${RELIT_DEBIAN_MIRROR:-http://deb.debian.org/debian}"
 SUDO=""
@@ -46,14 +50,18 @@ in_root() {
   local r="$1"
   shift
   $SUDO unshare --mount --propagation private -- sh -c '
-    r="$1"; repo="$2"; shift 2
+    r="$1"; repo="$2"; target="$3"; shift 3
     mount -t proc proc "$r/proc"
     mount --rbind /dev "$r/dev"
     mkdir -p "$r$repo" "$r/tmp"
     mount --bind "$repo" "$r$repo"
+    case "$target" in
+      "$repo"/*|"") ;;
+      *) mkdir -p "$r$target" && mount --bind "$target" "$r$target" ;;
+    esac
     cp /etc/resolv.conf "$r/etc/resolv.conf" 2>/dev/null || true
     exec chroot "$r" "$@"
-  ' sh "$r" "$repo" "$@"
+  ' sh "$r" "$repo" "${target:-}" "$@"
 }
 
 mesa_version() {
@@ -81,7 +89,7 @@ for l in sys.stdin:
   [ "${#bins[@]}" = 2 ] || { echo "lavapipe26: could not build the net and gpu tests" >&2; exit 1; }
   set -- "${bins[@]}"
   cargo build -q --bin relit
-  paths="$(in_root "$root" env -C "$repo" target/debug/relit info | grep "network path")"
+  paths="$(in_root "$root" env -C "$repo" "$target/debug/relit" info | grep "network path")"
   echo "$paths"
   case "$paths" in
     *"F16 storage: cooperative matrix"*) ;;

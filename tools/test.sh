@@ -4,12 +4,15 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh
+# Build products live outside the clone and outlast it (CI tests a fresh clone each time): the
+# dependencies (glslang's C++ above all) then compile once per machine, not once per run.
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/relit/target}"
 cargo test --workspace "$@"
 # The ground-truth renderer's own tests (they drive the scenegen binary).
 cargo build -p relit-scenegen --bin scenegen
-(cd tools/groundtruth && python3 -m unittest -v test_groundtruth)
+(cd tools/groundtruth && SCENEGEN="$CARGO_TARGET_DIR/debug/scenegen" python3 -m unittest -v test_groundtruth)
 # The trainer's tests (a tiny relit dataset, resume bit for bit, the engine loads its weights).
-RELIT="$PWD/target/debug/relit" "${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}/bin/python" \
+RELIT="$CARGO_TARGET_DIR/debug/relit" "${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}/bin/python" \
   -m unittest -v tools/train/test_train.py
 # The cooperative-matrix kernels on lavapipe >= 26 (Mesa's emulation), in a Debian 13 root
 # built once with debootstrap (~600 MB in ~/.cache/relit; tools/lavapipe26.sh).

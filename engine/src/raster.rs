@@ -7,7 +7,7 @@ use crate::gpu::shaders;
 use std::sync::Arc;
 
 use crate::error::Result;
-use crate::gpu::{bytes_of, image_barrier, vk, Bind, Gpu, GraphicsDesc, Image, Pipeline, RayScene};
+use crate::gpu::{bytes_of, image_barrier, vk, Gpu, GraphicsDesc, Image, Pipeline, RayScene};
 use crate::scene::Camera;
 
 pub const POS_DEPTH_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
@@ -98,8 +98,12 @@ impl GbufferPass {
                 frag: shaders::RASTER_GBUFFER_FRAG,
                 color_formats: &[POS_DEPTH_FORMAT, NORMAL_FORMAT, TRI_FORMAT],
                 depth_format: Some(DEPTH_FORMAT),
-                vertex_stride: 0,
-                attributes: &[],
+                // RayScene::corners: position, then the face normal.
+                vertex_stride: 24,
+                attributes: &[
+                    (0, vk::Format::R32G32B32_SFLOAT, 0),
+                    (1, vk::Format::R32G32B32_SFLOAT, 12),
+                ],
                 cull: vk::CullModeFlags::NONE,
             },
         )?;
@@ -184,14 +188,8 @@ impl GbufferPass {
                     .color_attachments(&colors)
                     .depth_attachment(&depth),
             );
-            self.pipeline.bind(
-                cmd,
-                &[
-                    (0, Bind::Buffer(&mesh.positions)),
-                    (1, Bind::Buffer(&mesh.indices)),
-                ],
-                bytes_of(&push),
-            )?;
+            self.pipeline.bind(cmd, &[], bytes_of(&push))?;
+            d.cmd_bind_vertex_buffers(cmd, 0, &[mesh.corners.raw], &[0]);
             d.cmd_set_viewport(
                 cmd,
                 0,

@@ -65,9 +65,9 @@ impl RayCaster {
         self.pipeline.dispatch(
             cmd,
             &[
-                (0, Bind::Accel(scene.tlas.raw)),
-                (1, Bind::Buffer(rays)),
-                (2, Bind::Buffer(hits)),
+                ("tlas", Bind::Accel(scene.tlas.raw)),
+                ("Rays", Bind::Buffer(rays)),
+                ("Hits", Bind::Buffer(hits)),
             ],
             bytes_of(&push),
             (count, 1, 1),

@@ -17,13 +17,17 @@ layout(local_size_x = 64) in;
 #include "lights.glsl"
 
 layout(set = 0, binding = 4, scalar) readonly buffer Verts { vec3 verts[]; };
-layout(set = 0, binding = 5) readonly buffer ESrc { vec4 e_src[]; };      // all views, view-major
 layout(set = 0, binding = 6) writeonly buffer Out { vec4 albedo[]; };     // rgb, w = weight sum
 layout(set = 0, binding = 7, scalar) readonly buffer Lights { Light lights[]; };
 
 #include "near_light.glsl"
 
-layout(push_constant) uniform Push { uint nverts; uint width; uint height; uint nviews; uint nlights; } pc;
+// e_src: E_src of all views, view-major, through its device address (no binding would hold
+// 300 views' maps: maxStorageBufferRange).
+layout(push_constant) uniform Push {
+    uint nverts; uint width; uint height; uint nviews; uint nlights; uint pad; uvec2 e_src_addr;
+} pc;
+#define e_src (Vec4Ref(pc.e_src_addr).v)
 
 void main() {
     uint v = gl_GlobalInvocationID.x;

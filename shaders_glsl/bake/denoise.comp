@@ -8,12 +8,16 @@
 // With `with_base`, the input is one noisy part of a map `base` (E_add's indirect light, whose
 // direct part keeps its sharp shadows): out = base − input + filtered input.
 #extension GL_EXT_scalar_block_layout : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
 #extension GL_GOOGLE_include_directive : require
 
 layout(local_size_x = 64) in;
 
-layout(set = 0, binding = 0) readonly buffer GPos { vec4 gpos[]; };   // all views
-layout(set = 0, binding = 1) readonly buffer GNrm { vec4 gnrm[]; };
+// The views' G-buffers (gpos, gnrm: all views) through their device addresses: no binding
+// holds every view's maps (300 views at 256×192 pass maxStorageBufferRange).
+#define VIEWS_BINDING 0
+#include "views.glsl"
 layout(set = 0, binding = 2) readonly buffer In { vec4 e_in[]; };     // this view
 layout(set = 0, binding = 3) writeonly buffer Out { vec4 e_out[]; };
 layout(set = 0, binding = 4) readonly buffer Base { vec4 e_base[]; };  // read when with_base

@@ -21,7 +21,7 @@ layout(set = 0, binding = 5, rgba32f) readonly uniform image2D g_nrm;
 layout(set = 0, binding = 13) readonly buffer Comp { f16vec4 comp[]; };     // 16 planes
 layout(set = 0, binding = 14) readonly buffer Irr { vec4 irr[]; };       // 3 planes
 layout(set = 0, binding = 15) readonly buffer Mirror { vec4 mirror[]; }; // 1 plane
-layout(set = 0, binding = 16) writeonly buffer Tensor { ACT4 t[]; };
+layout(set = 0, binding = 16) writeonly buffer NetIn { ACT4 t[]; };
 
 layout(push_constant) uniform Push { vec4 eye; uint width; uint height; } pc;
 

@@ -21,7 +21,7 @@ layout(set = 0, binding = 11) readonly buffer Intensity { float intensity[]; };
 layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
 layout(set = 0, binding = 20, r32ui) readonly uniform uimage2D g_tri;
 #include "live.glsl"
-layout(set = 0, binding = 13) writeonly buffer Out { vec4 irr[]; };
+layout(set = 0, binding = 13) writeonly buffer Irr { vec4 irr[]; };
 
 layout(push_constant) uniform Push {
     vec4 eye;

@@ -20,7 +20,7 @@ layout(local_size_x = 64) in;
 layout(set = 0, binding = 4, rgba32f) readonly uniform image2D g_pos;
 layout(set = 0, binding = 13) readonly buffer Comp { f16vec4 comp[]; };
 layout(set = 0, binding = 14) readonly buffer Irr { vec4 irr[]; };     // E_src, E_add, E_rem
-layout(set = 0, binding = 16) readonly buffer Net { ACT4 o[]; };   // 6 channels, pack4
+layout(set = 0, binding = 16) readonly buffer NetOut { ACT4 o[]; };   // 6 channels, pack4
 layout(set = 0, binding = 17) writeonly buffer Hdr { vec4 hdr[]; };
 layout(set = 0, binding = 18) writeonly buffer Ldr { uint ldr[]; };
 layout(set = 0, binding = 26) readonly buffer NetIn { ACT4 x[]; };  // 66 channels, pack4

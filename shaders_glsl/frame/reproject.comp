@@ -24,7 +24,7 @@ layout(local_size_x = 64) in;
 layout(set = 0, binding = 6) readonly buffer Active { uint active_views[]; };
 layout(set = 0, binding = 7) uniform sampler2DArray tex_img;
 layout(set = 0, binding = 8) uniform sampler2DArray tex_msrc;
-layout(set = 0, binding = 13) writeonly buffer Out { f16vec4 comp[]; };
+layout(set = 0, binding = 13) writeonly buffer Comp { f16vec4 comp[]; };
 
 layout(push_constant) uniform Push {
     vec4 eye;

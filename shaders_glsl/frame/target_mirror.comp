@@ -22,7 +22,7 @@ layout(set = 0, binding = 7) uniform sampler2DArray tex_img;
 layout(set = 0, binding = 9) uniform sampler2DArray tex_esrc;
 layout(set = 0, binding = 10) uniform sampler2DArray tex_eadd;
 layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
-layout(set = 0, binding = 13) writeonly buffer Out { vec4 mirror[]; };
+layout(set = 0, binding = 13) writeonly buffer Mirror { vec4 mirror[]; };
 #include "live.glsl"
 
 layout(push_constant) uniform Push {

@@ -1,22 +1,24 @@
 #version 460
 // G-buffer of a mesh seen from a camera: rasterized with the camera's exact pinhole projection
-// so that pixel (i, j) samples the ray through (i + 0.5, j + 0.5). Drawn without index buffer:
+// so that pixel (i, j) samples the ray through (i + 0.5, j + 0.5). Drawn without index buffer
+// from the mesh's corners (RayScene::corners: position and face normal per triangle corner):
 // vertex k of the draw is corner k % 3 of triangle k / 3, which gives the fragment shader the
-// triangle id without gl_PrimitiveID (that would need the geometryShader feature).
+// triangle id without gl_PrimitiveID (that would need the geometryShader feature), and no
+// shader reads a storage buffer (a per-lane loop per load on Mesa 25's llvmpipe).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_scalar_block_layout : require
 #include "camera.glsl"
 
 layout(push_constant, scalar) uniform Push { Camera cam; } pc;
-layout(set = 0, binding = 0, scalar) readonly buffer Positions { vec3 positions[]; };
-layout(set = 0, binding = 1, scalar) readonly buffer Indices { uint indices[]; };
+layout(location = 0) in vec3 position;
+layout(location = 1) in vec3 face_normal;
 
 layout(location = 0) out vec3 world_pos;
 layout(location = 1) out float cam_z;
 layout(location = 2) flat out uint tri;
+layout(location = 3) flat out vec3 normal;
 
 void main() {
-    vec3 position = positions[indices[gl_VertexIndex]];
     vec3 q = cam_from_world(pc.cam, position);
     vec2 size = pc.cam.size_clip.xy;
     float n = pc.cam.size_clip.z, f = pc.cam.size_clip.w;
@@ -30,4 +32,5 @@ void main() {
     world_pos = position;
     cam_z = q.z;
     tri = uint(gl_VertexIndex) / 3u;
+    normal = face_normal;
 }

@@ -19,13 +19,16 @@ struct Push {
     height: u32,
     nviews: u32,
     nlights: u32,
+    pad: u32,
+    /// Device address of E_src of all views.
+    e_src: [u32; 2],
 }
 
 /// Push as its shaders' push block declares it (tests/gpu.rs checks).
 pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
     Push,
     [shaders::BAKE_ALBEDO_MESH],
-    [nverts, width, height, nviews, nlights]
+    [nverts, width, height, nviews, nlights, pad, e_src]
 );
 
 pub struct AlbedoMesh {
@@ -46,7 +49,7 @@ impl AlbedoMesh {
     }
 
     /// Per-vertex albedo (rgb, w = weight sum; 0 where no view sees the vertex) from the E_src of
-    /// all views (`e_src`: view-major vec4 per pixel).
+    /// all views (`e_src`: view-major vec4 per pixel, made with SHADER_DEVICE_ADDRESS usage).
     pub fn run(
         &self,
         mesh: &RayScene,
@@ -54,21 +57,27 @@ impl AlbedoMesh {
         views: &GpuViews,
         e_src: &Buffer,
     ) -> Result<Vec<[f32; 4]>> {
+        if e_src.address == 0 {
+            return Err(crate::error::Error::Other(
+                "albedo mesh: E_src is read by address; its buffer needs SHADER_DEVICE_ADDRESS usage".into(),
+            ));
+        }
         let push = Push {
             nverts,
             width: views.width,
             height: views.height,
             nviews: views.count,
             nlights: self.nlights,
+            pad: 0,
+            e_src: [e_src.address as u32, (e_src.address >> 32) as u32],
         };
         super::views::run_vertices(&self.pipeline.gpu, nverts, |cmd, out| {
             let mut binds = vec![
-                (4, Bind::Buffer(&mesh.positions)),
-                (5, Bind::Buffer(e_src)),
-                (6, Bind::Buffer(out)),
-                (7, Bind::Buffer(&self.lights)),
+                ("Verts", Bind::Buffer(&mesh.positions)),
+                ("Out", Bind::Buffer(out)),
+                ("Lights", Bind::Buffer(&self.lights)),
             ];
-            binds.extend(views.binds(0));
+            binds.extend([views.bind()]);
             self.pipeline
                 .dispatch(cmd, &binds, bytes_of(&push), (nverts, 1, 1))
         })

@@ -94,11 +94,10 @@ impl Denoise {
             with_base: base.is_some() as u32,
         };
         let binds = [
-            (0, Bind::Buffer(&views.pos)),
-            (1, Bind::Buffer(&views.nrm)),
-            (2, Bind::Buffer(input)),
-            (3, Bind::Buffer(out)),
-            (4, Bind::Buffer(base.unwrap_or(input))),
+            views.bind(),
+            ("In", Bind::Buffer(input)),
+            ("Out", Bind::Buffer(out)),
+            ("Base", Bind::Buffer(base.unwrap_or(input))),
         ];
         self.pipeline.dispatch(
             cmd,

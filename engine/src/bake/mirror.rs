@@ -49,8 +49,11 @@ impl Mirror {
             height: views.height,
             nviews: views.count,
         };
-        let mut binds = vec![(0, Bind::Accel(mesh.tlas.raw)), (5, Bind::Buffer(out))];
-        binds.extend(views.binds(1));
+        let mut binds = vec![
+            ("tlas", Bind::Accel(mesh.tlas.raw)),
+            ("Out", Bind::Buffer(out)),
+        ];
+        binds.extend([views.bind()]);
         self.pipeline.dispatch(
             cmd,
             &binds,

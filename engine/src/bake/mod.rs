@@ -3,6 +3,7 @@
 
 pub mod accuracy;
 pub mod added_irradiance;
+pub mod added_light;
 pub mod albedo_mesh;
 pub mod cache;
 pub mod denoise;
@@ -16,7 +17,8 @@ pub mod storage;
 pub mod surface_cache;
 pub mod views;
 
-pub use added_irradiance::{AddedIrradiance, AddedParams, GpuLight};
+pub use added_irradiance::AddedIrradiance;
+pub use added_light::{AddedParams, GpuLight};
 pub use albedo_mesh::AlbedoMesh;
 pub use cache::BakeCache;
 pub use denoise::{Denoise, DenoiseParams};

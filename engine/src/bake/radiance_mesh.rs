@@ -64,11 +64,11 @@ impl RadianceMesh {
         };
         super::views::run_vertices(&self.pipeline.gpu, nverts, |cmd, out| {
             let mut binds = vec![
-                (4, Bind::Buffer(&mesh.positions)),
-                (5, Bind::Buffer(&self.lights)),
-                (6, Bind::Buffer(out)),
+                ("Verts", Bind::Buffer(&mesh.positions)),
+                ("Lights", Bind::Buffer(&self.lights)),
+                ("Out", Bind::Buffer(out)),
             ];
-            binds.extend(views.binds(0));
+            binds.extend([views.bind()]);
             self.pipeline
                 .dispatch(cmd, &binds, bytes_of(&push), (nverts, 1, 1))
         })

@@ -493,7 +493,8 @@ impl Stages<'_> {
                 let used = |p: &[f32; 3]| if p.iter().any(|c| *c > 0.0) { 1.0 } else { 0.0 };
                 e_all.extend(img.pixels.iter().map(|p| [p[0], p[1], p[2], used(p)]));
             }
-            let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+            // Read by address: all views' maps may pass maxStorageBufferRange.
+            let usage = vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
             let eb = Buffer::from_slice(gpu, "e_src all", usage, &e_all)?;
             let am = AlbedoMesh::new(gpu, &scene.lights)?;
             let mut a = am.run(&s.mesh, nverts as u32, &s.views, &eb)?;

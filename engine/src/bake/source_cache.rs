@@ -142,17 +142,17 @@ impl SourceCache {
             parts: PART_DIRECT,
         };
         let mut binds = vec![
-            (0, Bind::Accel(mesh.tlas.raw)),
-            (5, Bind::Buffer(out)),
-            (6, Bind::Buffer(lights)),
-            (7, Bind::Buffer(&mesh.indices)),
-            (8, Bind::Buffer(radiance)),
-            (9, Bind::Buffer(&mesh.positions)),
-            (10, Bind::Buffer(cache)),
-            (11, Bind::Buffer(&layout.corners)),
-            (12, Bind::Buffer(&views.tri)),
+            ("tlas", Bind::Accel(mesh.tlas.raw)),
+            ("Out", Bind::Buffer(out)),
+            ("Lights", Bind::Buffer(lights)),
+            ("Indices", Bind::Buffer(&mesh.indices)),
+            ("Radiance", Bind::Buffer(radiance)),
+            ("Verts", Bind::Buffer(&mesh.positions)),
+            ("Cache", Bind::Buffer(cache)),
+            ("Corners", Bind::Buffer(&layout.corners)),
+            ("Tri", Bind::Buffer(&views.tri)),
         ];
-        binds.extend(views.binds(1));
+        binds.extend([views.bind()]);
         self.pipeline.dispatch(
             cmd,
             &binds,

@@ -143,13 +143,13 @@ impl SourceIrradiance {
             parts: PART_ALL,
         };
         let mut binds = vec![
-            (0, Bind::Accel(mesh.tlas.raw)),
-            (5, Bind::Buffer(out)),
-            (6, Bind::Buffer(&self.lights)),
-            (7, Bind::Buffer(&mesh.indices)),
-            (8, Bind::Buffer(radiance)),
+            ("tlas", Bind::Accel(mesh.tlas.raw)),
+            ("Out", Bind::Buffer(out)),
+            ("Lights", Bind::Buffer(&self.lights)),
+            ("Indices", Bind::Buffer(&mesh.indices)),
+            ("Radiance", Bind::Buffer(radiance)),
         ];
-        binds.extend(views.binds(1));
+        binds.extend([views.bind()]);
         self.pipeline.dispatch(
             cmd,
             &binds,
@@ -222,15 +222,15 @@ impl SourceIrradiance {
         };
         super::views::run_vertices(&self.pipeline.gpu, count, |cmd, out| {
             let mut binds = vec![
-                (0, Bind::Accel(mesh.tlas.raw)),
-                (5, Bind::Buffer(out)),
-                (6, Bind::Buffer(&self.lights)),
-                (7, Bind::Buffer(&mesh.indices)),
-                (8, Bind::Buffer(radiance)),
-                (9, Bind::Buffer(positions)),
-                (10, Bind::Buffer(normals)),
+                ("tlas", Bind::Accel(mesh.tlas.raw)),
+                ("Out", Bind::Buffer(out)),
+                ("Lights", Bind::Buffer(&self.lights)),
+                ("Indices", Bind::Buffer(&mesh.indices)),
+                ("Radiance", Bind::Buffer(radiance)),
+                ("Verts", Bind::Buffer(positions)),
+                ("Normals", Bind::Buffer(normals)),
             ];
-            binds.extend(views.binds(1));
+            binds.extend([views.bind()]);
             self.vertices
                 .dispatch(cmd, &binds, bytes_of(&push), (count, 1, 1))
         })

@@ -206,8 +206,8 @@ impl Fetch {
             res = self.pipeline.dispatch(
                 cmd,
                 &[
-                    (0, Bind::Sampled(image.view, self.sampler.raw)),
-                    (1, Bind::Buffer(&full)),
+                    ("tex", Bind::Sampled(image.view, self.sampler.raw)),
+                    ("Out", Bind::Buffer(&full)),
                 ],
                 bytes_of(&push),
                 (image.width, image.height, 1),

@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use super::added_irradiance::{AddedParams, GpuLight, RR_START};
+use super::added_light::{AddedParams, GpuLight, RR_START};
 use super::random::{cosine_dir, rand2};
 use crate::error::Result;
 use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
@@ -232,15 +232,15 @@ impl SurfaceCache {
             light: *light,
         };
         let binds = [
-            (0, Bind::Accel(mesh.tlas.raw)),
-            (1, Bind::Buffer(&mesh.positions)),
-            (2, Bind::Buffer(&mesh.indices)),
-            (3, Bind::Buffer(albedo)),
-            (4, Bind::Buffer(&layout.pos)),
-            (5, Bind::Buffer(&layout.nrm)),
-            (6, Bind::Buffer(out)),
+            ("tlas", Bind::Accel(mesh.tlas.raw)),
+            ("Verts", Bind::Buffer(&mesh.positions)),
+            ("Indices", Bind::Buffer(&mesh.indices)),
+            ("Albedo", Bind::Buffer(albedo)),
+            ("Texels", Bind::Buffer(&layout.pos)),
+            ("Normals", Bind::Buffer(&layout.nrm)),
+            ("Out", Bind::Buffer(out)),
             // Unread without a list; any storage buffer fills the binding.
-            (7, Bind::Buffer(list.unwrap_or(&layout.pos))),
+            ("List", Bind::Buffer(list.unwrap_or(&layout.pos))),
         ];
         self.pipeline
             .dispatch(cmd, &binds, bytes_of(&push), (count, 1, 1))

@@ -127,7 +127,9 @@ pub struct GpuViews {
 impl GpuViews {
     pub fn upload(gpu: &Arc<Gpu>, d: &ViewData) -> Result<GpuViews> {
         let u = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let ua = u | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        // Read through device addresses only (views.glsl): no descriptor binds them, so
+        // maxStorageBufferRange does not bound the views' count or size.
+        let ua = vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let cams: Vec<GpuCamera> = d.cameras.iter().map(|c| c.to_gpu(NEAR, FAR)).collect();
         let cameras = Buffer::from_slice(gpu, "view cameras", ua, &cams)?;
         let pos = Buffer::from_slice(gpu, "view positions", ua, &d.pos)?;
@@ -155,9 +157,9 @@ impl GpuViews {
         })
     }
 
-    /// The binding of views.glsl (`VIEWS_BINDING` = `base`).
-    pub fn binds(&self, base: u32) -> [(u32, Bind<'_>); 1] {
-        [(base, Bind::Buffer(&self.addresses))]
+    /// The resource views.glsl declares (its `Views` block).
+    pub fn bind(&self) -> (&'static str, Bind<'_>) {
+        ("Views", Bind::Buffer(&self.addresses))
     }
 }
 

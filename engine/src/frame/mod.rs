@@ -21,8 +21,7 @@ pub use maps::{HostMaps, MapFormat, ViewMaps};
 use crate::bake::{run as bakerun, BakeCache, BakeParams, GpuLight, GpuViews, ViewData};
 use crate::error::{Error, Result};
 use crate::gpu::{
-    bytes_of, full_barrier, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, RayScene, Sampler,
-    Timer,
+    bytes_of, vk, Bind, Buffer, Gpu, Graph, MemoryLocation, Pipeline, RayScene, Sampler, Timer,
 };
 use crate::net::{Network, Storage, Tensor, INPUT_CHANNELS};
 use crate::raster::{Gbuffer, GbufferPass};
@@ -668,162 +667,134 @@ impl Renderer {
         ints.resize(self.scene.lights.len().max(1), 0.0);
         b.intensity.upload(bytemuck::cast_slice(&ints))?;
         let s = &self.scene;
-        let sm = s.sampler.raw;
-        let net_out = b.net.as_ref().map(|n| &n.out).unwrap_or(&b.dummy_net_out);
-        let mut binds: Vec<(u32, Bind)> = s.views.binds(0).to_vec();
-        binds.extend([
-            (4, Bind::StorageImage(b.gbuf.pos_depth.view)),
-            (5, Bind::StorageImage(b.gbuf.normal.view)),
-            (6, Bind::Buffer(&b.active)),
-            (7, Bind::Sampled(s.maps.img.view, sm)),
-            (8, Bind::Sampled(s.maps.msrc.view, sm)),
-            (9, Bind::Sampled(s.maps.esrc.view, sm)),
-            (10, Bind::Sampled(s.maps.eadd.view, sm)),
-            (11, Bind::Buffer(&b.intensity)),
-            (12, Bind::Accel(s.mesh.tlas.raw)),
-            (14, Bind::Buffer(&b.irr)),
-            (15, Bind::Buffer(&b.mirror)),
-            (16, Bind::Buffer(&b.input.buf)),
-            (17, Bind::Buffer(&b.hdr)),
-            (18, Bind::Buffer(&b.ldr)),
-            (19, Bind::Buffer(&s.emitter_buf)),
-            (20, Bind::StorageImage(b.gbuf.tri.view)),
-            (21, Bind::Buffer(&s.mesh.positions)),
-            (22, Bind::Buffer(&s.mesh.indices)),
-        ]);
-        let (live_caches, live_corners, live_lights) = self.live.buffers();
-        binds.extend([
-            (23, Bind::Buffer(live_caches)),
-            (24, Bind::Buffer(live_corners)),
-            (25, Bind::Buffer(live_lights)),
-        ]);
-        let (nlive, live_mask) = (self.live.count(), self.live.mask());
-        // Binding 13 is each pass's own output (the composites for the passes that read them).
-        fn with13<'a>(binds: &[(u32, Bind<'a>)], buf: &'a Buffer) -> Vec<(u32, Bind<'a>)> {
-            let mut v = binds.to_vec();
-            v.push((13, Bind::Buffer(buf)));
-            v
-        }
         let e4 = [eye.x, eye.y, eye.z, 1.0];
-        let npix = width * height;
-        let threads = (npix, 1, 1);
+        let threads = (width * height, 1, 1);
         let (vw, vh) = (s.views.width, s.views.height);
         let nlights = s.lights.len() as u32;
-        let mut res: Result<()> = Ok(());
+        let (nlive, live_mask) = (self.live.count(), self.live.mask());
+        let alpha_dim = lighting.alpha_dim;
+        let reproject = reproject::Push {
+            eye: e4,
+            width,
+            height,
+            nactive: active.len() as u32,
+            view_w: vw,
+            view_h: vh,
+        };
+        let irradiance = irradiance::Push {
+            eye: e4,
+            width,
+            height,
+            nactive: active.len() as u32,
+            view_w: vw,
+            view_h: vh,
+            nviews: s.views.count,
+            nlights,
+            alpha_dim,
+            nlive,
+            live_mask,
+        };
+        let target_mirror = target_mirror::Push {
+            eye: e4,
+            width,
+            height,
+            view_w: vw,
+            view_h: vh,
+            nviews: s.views.count,
+            nlights,
+            alpha_dim,
+            exclude: self.exclude.unwrap_or(u32::MAX),
+            nlive,
+            live_mask,
+        };
+        let features = features::Push {
+            eye: e4,
+            width,
+            height,
+        };
+        let output = output::Push {
+            width,
+            height,
+            mode: match mode {
+                Mode::Network => 0,
+                Mode::Ulr => 1,
+                Mode::Ratio => 2,
+                Mode::RatioFilled => 3,
+            },
+            exposure,
+            cam: cam.to_gpu(NEAR, FAR),
+            nlights,
+            base: match self.net.as_ref().map(|n| n.config.base) {
+                Some(crate::net::NetBase::Ratio) => 1,
+                _ => 0,
+            },
+        };
+        // The passes that only feed the network (see `display_only`).
+        let inputs = mode.needs_network() || !self.display_only;
         let gpu = self.gpu.clone();
-        gpu.submit(|cmd| {
-            res = (|| {
-                macro_rules! timed {
-                    ($label:expr, $body:expr) => {{
-                        let sp = match timer.as_deref_mut() {
-                            Some(t) => Some(t.begin(cmd, $label)?),
-                            None => None,
-                        };
-                        $body;
-                        if let (Some(sp), Some(t)) = (sp, timer.as_deref()) {
-                            t.end(cmd, sp);
-                        }
-                    }};
-                }
-                // A compute pass over every pixel, its output at binding 13.
-                let pass = |p: &Pipeline, out: &Buffer, push: &[u8]| {
-                    p.dispatch_subset(cmd, &with13(&binds, out), push, threads)
-                };
-                timed!("g-buffer", {
-                    self.gbuffer.record(cmd, &s.mesh, cam, NEAR, FAR, &b.gbuf)?;
-                    full_barrier(&gpu, cmd);
-                });
-                timed!("reproject", {
-                    let push = reproject::Push {
-                        eye: e4,
-                        width,
-                        height,
-                        nactive: active.len() as u32,
-                        view_w: vw,
-                        view_h: vh,
-                    };
-                    pass(&self.reproject, &b.comp, bytes_of(&push))?;
-                });
-                timed!("irradiance", {
-                    let push = irradiance::Push {
-                        eye: e4,
-                        width,
-                        height,
-                        nactive: active.len() as u32,
-                        view_w: vw,
-                        view_h: vh,
-                        nviews: s.views.count,
-                        nlights,
-                        alpha_dim: lighting.alpha_dim,
-                        nlive,
-                        live_mask,
-                    };
-                    pass(&self.irradiance, &b.irr, bytes_of(&push))?;
-                });
-                let inputs = mode.needs_network() || !self.display_only;
-                if inputs {
-                    timed!("target mirror", {
-                        let push = target_mirror::Push {
-                            eye: e4,
-                            width,
-                            height,
-                            view_w: vw,
-                            view_h: vh,
-                            nviews: s.views.count,
-                            nlights,
-                            alpha_dim: lighting.alpha_dim,
-                            exclude: self.exclude.unwrap_or(u32::MAX),
-                            nlive,
-                            live_mask,
-                        };
-                        pass(&self.target_mirror, &b.mirror, bytes_of(&push))?;
-                    });
-                }
-                full_barrier(&gpu, cmd);
-                if inputs {
-                    timed!("features", {
-                        let push = features::Push {
-                            eye: e4,
-                            width,
-                            height,
-                        };
-                        pass(&self.features, &b.comp, bytes_of(&push))?;
-                        full_barrier(&gpu, cmd);
-                    });
-                }
-                if mode.needs_network() {
-                    let (net, nb) = (self.net.as_ref().unwrap(), b.net.as_ref().unwrap());
-                    net.record(cmd, nb, &b.input, timer.as_deref_mut())?;
-                }
-                timed!("output", {
-                    let push = output::Push {
-                        width,
-                        height,
-                        mode: match mode {
-                            Mode::Network => 0,
-                            Mode::Ulr => 1,
-                            Mode::Ratio => 2,
-                            Mode::RatioFilled => 3,
-                        },
-                        exposure,
-                        cam: cam.to_gpu(NEAR, FAR),
-                        nlights,
-                        base: match self.net.as_ref().map(|n| n.config.base) {
-                            Some(crate::net::NetBase::Ratio) => 1,
-                            _ => 0,
-                        },
-                    };
-                    let mut v = with13(&binds, &b.comp);
-                    v.retain(|(i, _)| *i != 16);
-                    v.push((16, Bind::Buffer(&net_out.buf)));
-                    v.push((26, Bind::Buffer(&b.input.buf)));
-                    self.output
-                        .dispatch_subset(cmd, &v, bytes_of(&push), threads)?;
-                });
-                Ok(())
-            })();
+        let res = gpu.submit(|cmd| -> Result<()> {
+            let mut g = Graph::new(&gpu, cmd, timer.as_deref_mut());
+            self.resources(&mut g, b);
+            g.external(
+                Some("g-buffer"),
+                &[],
+                &["g_pos", "g_nrm", "g_tri"],
+                |cmd, _| self.gbuffer.record(cmd, &s.mesh, cam, NEAR, FAR, &b.gbuf),
+            )?;
+            g.dispatch("reproject", &self.reproject, bytes_of(&reproject), threads)?;
+            g.dispatch(
+                "irradiance",
+                &self.irradiance,
+                bytes_of(&irradiance),
+                threads,
+            )?;
+            if inputs {
+                let mirror = bytes_of(&target_mirror);
+                g.dispatch("target mirror", &self.target_mirror, mirror, threads)?;
+                g.dispatch("features", &self.features, bytes_of(&features), threads)?;
+            }
+            if mode.needs_network() {
+                let (net, nb) = (self.net.as_ref().unwrap(), b.net.as_ref().unwrap());
+                g.external(None, &["NetIn"], &["NetOut"], |cmd, timer| {
+                    net.record(cmd, nb, &b.input, timer)
+                })?;
+            }
+            g.dispatch("output", &self.output, bytes_of(&output), threads)
         })?;
         res
+    }
+
+    /// The frame's resources by the names its shaders give them.
+    fn resources<'a>(&'a self, g: &mut Graph<'a, '_>, b: &'a FrameBuffers) {
+        let s = &self.scene;
+        let sm = s.sampler.raw;
+        let net_out = b.net.as_ref().map(|n| &n.out).unwrap_or(&b.dummy_net_out);
+        let (live_caches, live_corners, live_lights) = self.live.buffers();
+        let (name, views) = s.views.bind();
+        g.set(name, views)
+            .set("g_pos", Bind::StorageImage(b.gbuf.pos_depth.view))
+            .set("g_nrm", Bind::StorageImage(b.gbuf.normal.view))
+            .set("g_tri", Bind::StorageImage(b.gbuf.tri.view))
+            .set("Active", Bind::Buffer(&b.active))
+            .set("tex_img", Bind::Sampled(s.maps.img.view, sm))
+            .set("tex_msrc", Bind::Sampled(s.maps.msrc.view, sm))
+            .set("tex_esrc", Bind::Sampled(s.maps.esrc.view, sm))
+            .set("tex_eadd", Bind::Sampled(s.maps.eadd.view, sm))
+            .set("Intensity", Bind::Buffer(&b.intensity))
+            .set("tlas", Bind::Accel(s.mesh.tlas.raw))
+            .set("Comp", Bind::Buffer(&b.comp))
+            .set("Irr", Bind::Buffer(&b.irr))
+            .set("Mirror", Bind::Buffer(&b.mirror))
+            .set("NetIn", Bind::Buffer(&b.input.buf))
+            .set("NetOut", Bind::Buffer(&net_out.buf))
+            .set("Hdr", Bind::Buffer(&b.hdr))
+            .set("Ldr", Bind::Buffer(&b.ldr))
+            .set("Emitters", Bind::Buffer(&s.emitter_buf))
+            .set("LiveVerts", Bind::Buffer(&s.mesh.positions))
+            .set("LiveIndices", Bind::Buffer(&s.mesh.indices))
+            .set("LiveCaches", Bind::Buffer(live_caches))
+            .set("LiveCorners", Bind::Buffer(live_corners))
+            .set("Lives", Bind::Buffer(live_lights));
     }
 
     /// The buffers of the last [`Renderer::render`] (composites: [`FrameBuffers::composites`]).

@@ -33,7 +33,25 @@ pub struct RayScene {
     pub blas: AccelStruct,
     pub positions: Buffer,
     pub indices: Buffer,
+    /// Per triangle corner (three per triangle, in order): its position and the triangle's
+    /// geometric normal (counter-clockwise = front), 6 floats: a vertex buffer, so rasterizing
+    /// needs no index lookups in shaders (a per-lane loop each on Mesa 25's llvmpipe).
+    pub corners: Buffer,
     pub triangle_count: u32,
+}
+
+/// The [`RayScene::corners`] of a mesh.
+pub fn corners(positions: &[[f32; 3]], indices: &[[u32; 3]]) -> Vec<[f32; 6]> {
+    let mut out = Vec::with_capacity(3 * indices.len());
+    for t in indices {
+        let p = t.map(|i| glam::Vec3::from(positions.get(i as usize).copied().unwrap_or_default()));
+        let c = (p[1] - p[0]).cross(p[2] - p[0]);
+        let n = c / c.length();
+        for q in p {
+            out.push([q.x, q.y, q.z, n.x, n.y, n.z]);
+        }
+    }
+    out
 }
 
 fn build(
@@ -203,11 +221,15 @@ impl RayScene {
             .geometry_type(vk::GeometryTypeKHR::INSTANCES)
             .geometry(vk::AccelerationStructureGeometryDataKHR { instances: inst });
         let tlas = build(gpu, vk::AccelerationStructureTypeKHR::TOP_LEVEL, geom, 1)?;
+        let vertex = vk::BufferUsageFlags::VERTEX_BUFFER;
+        let corners =
+            Buffer::from_slice(gpu, "mesh corners", vertex, &corners(positions, indices))?;
         Ok(RayScene {
             tlas,
             blas,
             positions: pos,
             indices: idx,
+            corners,
             triangle_count: indices.len() as u32,
         })
     }

@@ -114,7 +114,10 @@ impl GatherProbe {
             Access::StorageBuffer => &self.ssbo,
             Access::DeviceAddress => &self.bda,
         };
-        let binds = [(0, Bind::Buffer(&self.table)), (1, Bind::Buffer(&self.out))];
+        let binds = [
+            ("Table", Bind::Buffer(&self.table)),
+            ("Out", Bind::Buffer(&self.out)),
+        ];
         let mut timer = Timer::new(&self.gpu, 1)?;
         let mut err = Ok(());
         self.gpu.submit(|cmd| {

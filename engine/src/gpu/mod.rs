@@ -4,6 +4,7 @@
 mod accel;
 mod device;
 pub mod gather;
+mod graph;
 mod memory;
 mod pipeline;
 pub mod present;
@@ -14,10 +15,11 @@ pub use device::{
     list_devices, load_entry, validation_layer_available, Caps, CoopMatrixShape, DeviceChoice, Gpu,
     GpuOptions,
 };
+pub use graph::Graph;
 pub use memory::{full_barrier, image_barrier, texel_size, Buffer, Image};
 pub use pipeline::{
-    layout_source, reflect, shaders, spirv, Bind, GraphicsDesc, Pipeline, PushLayout, Reflected,
-    Sampler, Shader,
+    layout_source, reflect, shaders, spirv, Access, Bind, GraphicsDesc, Pipeline, PushLayout,
+    Reflected, Sampler, Shader,
 };
 pub use present::{PresentMode, Presenter};
 pub use timer::Timer;

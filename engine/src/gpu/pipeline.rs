@@ -69,6 +69,35 @@ pub struct Reflected {
     /// Byte offset of each member of the push-constant block, in member order.
     pub push_offsets: Vec<u32>,
     pub workgroup: Option<(u32, u32, u32)>,
+    /// Set 0's bindings by the name the GLSL gives each resource (a block's type name, an
+    /// image's, sampler's or acceleration structure's variable name), and how the shader uses it.
+    pub names: BTreeMap<String, (u32, Access)>,
+}
+
+/// How a shader uses a binding, from its SPIR-V decorations (`readonly`: NonWritable,
+/// `writeonly`: NonReadable); sampled images, uniform blocks and acceleration structures are
+/// read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Access {
+    Read,
+    Write,
+    ReadWrite,
+}
+
+impl Access {
+    pub fn reads(self) -> bool {
+        self != Access::Write
+    }
+    pub fn writes(self) -> bool {
+        self != Access::Read
+    }
+    fn merge(self, o: Access) -> Access {
+        if self == o {
+            self
+        } else {
+            Access::ReadWrite
+        }
+    }
 }
 
 /// A `#[repr(C)]` push-constant struct as Rust lays it out ([`crate::push_layout!`]), for a test
@@ -99,11 +128,50 @@ macro_rules! push_layout {
 /// gives only the block's range): the PushConstant variable → its pointer type → the struct's
 /// `OpMemberDecorate … Offset`.
 fn push_member_offsets(words: &[u32]) -> Vec<u32> {
-    const TYPE_POINTER: u32 = 32;
-    const VARIABLE: u32 = 59;
-    const MEMBER_DECORATE: u32 = 72;
-    const OFFSET: u32 = 35;
-    const PUSH_CONSTANT: u32 = 9;
+    let insts = instructions(words);
+    let find = |op: u32, f: &dyn Fn(&[u32]) -> bool| {
+        insts
+            .iter()
+            .find(|(o, a)| *o == op && f(a))
+            .map(|(_, a)| *a)
+    };
+    let Some(var) = find(op::VARIABLE, &|a| a.len() >= 3 && a[2] == op::PUSH_CONSTANT) else {
+        return Vec::new();
+    };
+    let Some(ptr) = find(op::TYPE_POINTER, &|a| a.len() == 3 && a[0] == var[0]) else {
+        return Vec::new();
+    };
+    let mut members: Vec<(u32, u32)> = insts
+        .iter()
+        .filter(|(o, a)| {
+            *o == op::MEMBER_DECORATE && a.len() == 4 && a[0] == ptr[2] && a[2] == op::OFFSET
+        })
+        .map(|(_, a)| (a[1], a[3]))
+        .collect();
+    members.sort();
+    members.into_iter().map(|(_, off)| off).collect()
+}
+
+/// SPIR-V opcodes, decorations and storage classes read here.
+mod op {
+    pub const NAME: u32 = 5;
+    pub const TYPE_STRUCT: u32 = 30;
+    pub const TYPE_POINTER: u32 = 32;
+    pub const VARIABLE: u32 = 59;
+    pub const DECORATE: u32 = 71;
+    pub const MEMBER_DECORATE: u32 = 72;
+    pub const OFFSET: u32 = 35;
+    pub const BINDING: u32 = 33;
+    pub const DESCRIPTOR_SET: u32 = 34;
+    pub const NON_WRITABLE: u32 = 24;
+    pub const NON_READABLE: u32 = 25;
+    pub const PUSH_CONSTANT: u32 = 9;
+    pub const STORAGE_BUFFER: u32 = 12;
+    pub const UNIFORM_CONSTANT: u32 = 0;
+}
+
+/// The module's instructions as (opcode, operands).
+fn instructions(words: &[u32]) -> Vec<(u32, &[u32])> {
     let mut insts = Vec::new();
     let mut i = 5; // the module header
     while i < words.len() {
@@ -114,25 +182,96 @@ fn push_member_offsets(words: &[u32]) -> Vec<u32> {
         insts.push((op, &words[i + 1..i + n]));
         i += n;
     }
-    let find = |op: u32, f: &dyn Fn(&[u32]) -> bool| {
-        insts
-            .iter()
-            .find(|(o, a)| *o == op && f(a))
-            .map(|(_, a)| *a)
+    insts
+}
+
+/// A literal string operand.
+fn literal(words: &[u32]) -> String {
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    let end = bytes.iter().position(|&b| b == 0).unwrap_or(bytes.len());
+    String::from_utf8_lossy(&bytes[..end]).into_owned()
+}
+
+/// Set 0's bindings by name, with their access (see [`Reflected::names`]).
+fn binding_names(words: &[u32]) -> Result<BTreeMap<String, (u32, Access)>> {
+    let insts = instructions(words);
+    let name_of = |id: u32| {
+        (insts.iter())
+            .find(|(o, a)| *o == op::NAME && a.len() >= 2 && a[0] == id)
+            .map(|(_, a)| literal(&a[1..]))
+            .filter(|n| !n.is_empty())
     };
-    let Some(var) = find(VARIABLE, &|a| a.len() >= 3 && a[2] == PUSH_CONSTANT) else {
-        return Vec::new();
+    let decorated = |id: u32, d: u32| {
+        (insts.iter()).find(|(o, a)| *o == op::DECORATE && a.len() >= 2 && a[0] == id && a[1] == d)
     };
-    let Some(ptr) = find(TYPE_POINTER, &|a| a.len() == 3 && a[0] == var[0]) else {
-        return Vec::new();
+    let all_members = |ty: u32, d: u32| {
+        let n = (insts.iter())
+            .find(|(o, a)| *o == op::TYPE_STRUCT && a.first() == Some(&ty))
+            .map_or(0, |(_, a)| a.len() - 1);
+        let marked = (insts.iter())
+            .filter(|(o, a)| *o == op::MEMBER_DECORATE && a.len() >= 3 && a[0] == ty && a[2] == d)
+            .count();
+        n > 0 && marked == n
     };
-    let mut members: Vec<(u32, u32)> = insts
+    let mut out = BTreeMap::new();
+    for (_, a) in insts
         .iter()
-        .filter(|(o, a)| *o == MEMBER_DECORATE && a.len() == 4 && a[0] == ptr[2] && a[2] == OFFSET)
-        .map(|(_, a)| (a[1], a[3]))
-        .collect();
-    members.sort();
-    members.into_iter().map(|(_, off)| off).collect()
+        .filter(|(o, a)| *o == op::VARIABLE && a.len() >= 3)
+    {
+        let (ptr_ty, var, class) = (a[0], a[1], a[2]);
+        let set = decorated(var, op::DESCRIPTOR_SET).map(|(_, d)| d[2]);
+        let Some(binding) = decorated(var, op::BINDING).map(|(_, d)| d[2]) else {
+            continue;
+        };
+        if set != Some(0) {
+            continue;
+        }
+        let pointee = (insts.iter())
+            .find(|(o, p)| *o == op::TYPE_POINTER && p.len() == 3 && p[0] == ptr_ty)
+            .map(|(_, p)| p[2]);
+        let is_block = pointee.is_some_and(|t| {
+            insts
+                .iter()
+                .any(|(o, s)| *o == op::TYPE_STRUCT && s.first() == Some(&t))
+        });
+        // A block is named by its type (`buffer Comp { … }`), anything else by its variable.
+        let name = match (is_block, pointee) {
+            (true, Some(t)) => name_of(t),
+            _ => name_of(var),
+        }
+        .ok_or_else(|| Error::Other(format!("binding {binding} has no name in the SPIR-V")))?;
+        let (read_only, write_only) = match (is_block, pointee) {
+            (true, Some(t)) if class == op::STORAGE_BUFFER => (
+                decorated(var, op::NON_WRITABLE).is_some() || all_members(t, op::NON_WRITABLE),
+                decorated(var, op::NON_READABLE).is_some() || all_members(t, op::NON_READABLE),
+            ),
+            // Uniform blocks are read-only.
+            (true, _) => (true, false),
+            _ if class == op::UNIFORM_CONSTANT => (
+                decorated(var, op::NON_WRITABLE).is_some() || !is_storage_image(&insts, pointee),
+                decorated(var, op::NON_READABLE).is_some(),
+            ),
+            _ => (false, false),
+        };
+        let access = match (read_only, write_only) {
+            (true, _) => Access::Read,
+            (false, true) => Access::Write,
+            _ => Access::ReadWrite,
+        };
+        if out.insert(name.clone(), (binding, access)).is_some() {
+            return Err(Error::Other(format!("two bindings are named {name}")));
+        }
+    }
+    Ok(out)
+}
+
+/// Whether `ty` is a storage image (OpTypeImage with Sampled = 2); sampled images, samplers
+/// and acceleration structures are read-only.
+fn is_storage_image(insts: &[(u32, &[u32])], ty: Option<u32>) -> bool {
+    const TYPE_IMAGE: u32 = 25;
+    ty.is_some_and(|t| {
+        (insts.iter()).any(|(o, a)| *o == TYPE_IMAGE && a.len() >= 7 && a[0] == t && a[6] == 2)
+    })
 }
 
 pub fn reflect(shader: Shader) -> Result<Reflected> {
@@ -171,6 +310,7 @@ pub fn reflect(shader: Shader) -> Result<Reflected> {
         push_size,
         push_offsets: push_member_offsets(&words),
         workgroup: r.get_compute_group_size(),
+        names: binding_names(&words).map_err(|e| Error::Other(format!("reflecting {src}: {e}")))?,
     })
 }
 
@@ -193,6 +333,8 @@ pub struct Pipeline {
     pub set_layout: vk::DescriptorSetLayout,
     pub bind_point: vk::PipelineBindPoint,
     pub bindings: BTreeMap<u32, (vk::DescriptorType, u32)>,
+    /// The bindings by name, with their access ([`Reflected::names`]).
+    pub names: BTreeMap<String, (u32, Access)>,
     pub push_size: u32,
     pub stages: vk::ShaderStageFlags,
     pub workgroup: (u32, u32, u32),
@@ -213,6 +355,7 @@ struct Layout {
     set_layout: vk::DescriptorSetLayout,
     layout: vk::PipelineLayout,
     bindings: BTreeMap<u32, (vk::DescriptorType, u32)>,
+    names: BTreeMap<String, (u32, Access)>,
     push_size: u32,
 }
 
@@ -225,6 +368,19 @@ fn make_layout(
     let mut bindings: BTreeMap<u32, (vk::DescriptorType, u32, vk::ShaderStageFlags)> =
         BTreeMap::new();
     let mut push_size = 0;
+    let mut names: BTreeMap<String, (u32, Access)> = BTreeMap::new();
+    for (r, _) in parts {
+        for (n, &(b, a)) in &r.names {
+            let e = names.entry(n.clone()).or_insert((b, a));
+            if e.0 != b {
+                return Err(Error::Other(format!(
+                    "{name}: \"{n}\" is binding {} in one stage and {b} in another",
+                    e.0
+                )));
+            }
+            e.1 = e.1.merge(a);
+        }
+    }
     for (r, stage) in parts {
         for (set, b) in &r.sets {
             if *set != 0 {
@@ -299,6 +455,7 @@ fn make_layout(
         set_layout,
         layout,
         bindings,
+        names,
         push_size,
     })
 }
@@ -328,6 +485,7 @@ impl Pipeline {
             set_layout,
             layout,
             bindings,
+            names,
             push_size,
         } = make_layout(gpu, shader.name(), &[(r, vk::ShaderStageFlags::COMPUTE)])?;
         let module = make_module(gpu, shader)?;
@@ -376,6 +534,7 @@ impl Pipeline {
             set_layout,
             bind_point: vk::PipelineBindPoint::COMPUTE,
             bindings,
+            names,
             push_size,
             stages: vk::ShaderStageFlags::COMPUTE,
             workgroup,
@@ -393,6 +552,7 @@ impl Pipeline {
             set_layout,
             layout,
             bindings,
+            names,
             push_size,
         } = make_layout(gpu, &name, &parts)?;
         let vm = make_module(gpu, desc.vert)?;
@@ -498,6 +658,7 @@ impl Pipeline {
             set_layout,
             bind_point: vk::PipelineBindPoint::GRAPHICS,
             bindings,
+            names,
             push_size,
             stages: vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
             workgroup: (1, 1, 1),
@@ -505,39 +666,67 @@ impl Pipeline {
         })
     }
 
-    /// Binds the pipeline, pushes set 0 and the push constants. Each reflected binding must be
-    /// given exactly once, with a resource of the reflected type.
-    /// Whether the shader declares `binding` in set 0.
-    pub fn has_binding(&self, binding: u32) -> bool {
-        self.bindings.contains_key(&binding)
+    /// Whether the shader declares a binding named `name`.
+    pub fn has_binding(&self, name: &str) -> bool {
+        self.names.contains_key(name)
     }
 
-    /// Binds and dispatches with the subset of `binds` that the shader declares (passes that
-    /// share one binding numbering, like the frame passes).
+    /// Binds and dispatches with the resources of `binds` that the shader declares (passes
+    /// that share one table of named resources, like the frame's).
     pub fn dispatch_subset(
         &self,
         cmd: vk::CommandBuffer,
-        binds: &[(u32, Bind)],
+        binds: &[(&str, Bind)],
         push: &[u8],
         threads: (u32, u32, u32),
     ) -> Result<()> {
-        let mine: Vec<(u32, Bind)> = binds
-            .iter()
-            .filter(|(b, _)| self.has_binding(*b))
+        let mine: Vec<(&str, Bind)> = (binds.iter())
+            .filter(|(n, _)| self.has_binding(n))
             .copied()
             .collect();
         self.dispatch(cmd, &mine, push, threads)
     }
 
-    pub fn bind(&self, cmd: vk::CommandBuffer, binds: &[(u32, Bind)], push: &[u8]) -> Result<()> {
-        for b in self.bindings.keys() {
-            if !binds.iter().any(|(i, _)| i == b) {
-                return Err(Error::Other(format!(
-                    "{}: binding {b} not given",
-                    self.name
-                )));
-            }
+    /// The binding numbers of `binds`: each name must be one the shader declares, and each
+    /// binding it declares must be given.
+    fn numbered<'b>(&self, binds: &[(&str, Bind<'b>)]) -> Result<Vec<(u32, Bind<'b>)>> {
+        let known = || self.names.keys().cloned().collect::<Vec<_>>().join(", ");
+        let mut out = Vec::with_capacity(binds.len());
+        for (n, b) in binds {
+            let (i, _) = self.names.get(*n).ok_or_else(|| {
+                Error::Other(format!(
+                    "{}: no binding named \"{n}\" (it declares {})",
+                    self.name,
+                    known()
+                ))
+            })?;
+            out.push((*i, *b));
         }
+        if let Some(missing) =
+            (self.names.iter()).find(|(_, (i, _))| !out.iter().any(|o| o.0 == *i))
+        {
+            return Err(Error::Other(format!(
+                "{}: binding \"{}\" not given",
+                self.name, missing.0
+            )));
+        }
+        Ok(out)
+    }
+
+    /// Binds the pipeline, pushes set 0 (each resource to the binding of its name) and the
+    /// push constants. Each binding the shader declares must be given exactly once, with a
+    /// resource of the reflected type.
+    pub fn bind(&self, cmd: vk::CommandBuffer, binds: &[(&str, Bind)], push: &[u8]) -> Result<()> {
+        let binds = self.numbered(binds)?;
+        self.bind_numbered(cmd, &binds, push)
+    }
+
+    fn bind_numbered(
+        &self,
+        cmd: vk::CommandBuffer,
+        binds: &[(u32, Bind)],
+        push: &[u8],
+    ) -> Result<()> {
         if push.len() as u32 != self.push_size {
             return Err(Error::Other(format!(
                 "{}: push constants are {} bytes, shader declares {}",
@@ -569,8 +758,11 @@ impl Pipeline {
                     )
             );
             if !ok {
+                let name = (self.names.iter())
+                    .find(|(_, (i, _))| i == binding)
+                    .map_or(String::new(), |(n, _)| n.clone());
                 return Err(Error::Other(format!(
-                    "{}: binding {binding} is {ty:?} in the shader",
+                    "{}: binding \"{name}\" is {ty:?} in the shader",
                     self.name
                 )));
             }
@@ -653,7 +845,7 @@ impl Pipeline {
     pub fn dispatch_groups(
         &self,
         cmd: vk::CommandBuffer,
-        binds: &[(u32, Bind)],
+        binds: &[(&str, Bind)],
         push: &[u8],
         groups: (u32, u32, u32),
     ) -> Result<()> {
@@ -670,7 +862,7 @@ impl Pipeline {
     pub fn dispatch(
         &self,
         cmd: vk::CommandBuffer,
-        binds: &[(u32, Bind)],
+        binds: &[(&str, Bind)],
         push: &[u8],
         threads: (u32, u32, u32),
     ) -> Result<()> {

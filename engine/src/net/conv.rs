@@ -641,11 +641,11 @@ impl NetKernels {
         };
         let res = ep.residual.unwrap_or(input);
         let binds = [
-            (0, Bind::Buffer(&input.buf)),
-            (1, Bind::Buffer(&layer.weights)),
-            (2, Bind::Buffer(&layer.bias)),
-            (3, Bind::Buffer(&res.buf)),
-            (4, Bind::Buffer(&out.buf)),
+            ("In", Bind::Buffer(&input.buf)),
+            ("Wt", Bind::Buffer(&layer.weights)),
+            ("Bias", Bind::Buffer(&layer.bias)),
+            ("Res", Bind::Buffer(&res.buf)),
+            ("Out", Bind::Buffer(&out.buf)),
         ];
         if let Some(lanes) = &self.lanes {
             return lanes.record(&self.gpu, cmd, layer, input, out, ep);
@@ -701,7 +701,10 @@ impl NetKernels {
             };
             self.up.dispatch(cmd, &[], bytes_of(&push), threads)?;
         } else {
-            let binds = [(0, Bind::Buffer(&src.buf)), (1, Bind::Buffer(&dst.buf))];
+            let binds = [
+                ("Src", Bind::Buffer(&src.buf)),
+                ("Dst", Bind::Buffer(&dst.buf)),
+            ];
             self.up.dispatch(cmd, &binds, bytes_of(&push), threads)?;
         }
         full_barrier(&self.gpu, cmd);

@@ -73,9 +73,9 @@ impl Gemm {
             res = self.pipeline.dispatch_groups(
                 cmd,
                 &[
-                    (0, Bind::Buffer(&ab)),
-                    (1, Bind::Buffer(&bb)),
-                    (2, Bind::Buffer(&cb)),
+                    ("MatA", Bind::Buffer(&ab)),
+                    ("MatB", Bind::Buffer(&bb)),
+                    ("MatC", Bind::Buffer(&cb)),
                 ],
                 bytes_of(&push),
                 (n / TILE, m / TILE, 1),

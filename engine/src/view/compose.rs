@@ -239,10 +239,10 @@ impl Compose {
         self.text.upload(bytes)?;
         let push = push(src_size, dst_size, hud, bgr);
         let binds = [
-            (0, Bind::Buffer(src)),
-            (1, Bind::Buffer(&self.out)),
-            (2, Bind::Buffer(&self.font)),
-            (3, Bind::Buffer(&self.text)),
+            ("Src", Bind::Buffer(src)),
+            ("Dst", Bind::Buffer(&self.out)),
+            ("Font", Bind::Buffer(&self.font)),
+            ("Text", Bind::Buffer(&self.text)),
         ];
         self.pipe
             .dispatch(cmd, &binds, bytes_of(&push), (dst_size.0, dst_size.1, 1))?;
