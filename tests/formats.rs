@@ -488,3 +488,109 @@ fn the_readme_lists_every_viewer_key() {
         );
     }
 }
+
+/// A grey JPEG of `w`×`h`, with EXIF exposure tags (time, f-number as rationals, ISO) if given.
+fn jpeg_with_exif(
+    path: &Path,
+    (w, h): (u32, u32),
+    grey: u8,
+    exp: Option<((u32, u32), (u32, u32), u16)>,
+) {
+    let img = image::RgbImage::from_pixel(w, h, image::Rgb([grey; 3]));
+    let mut jpg = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 100)
+        .encode_image(&img)
+        .unwrap();
+    if let Some((t, n, iso)) = exp {
+        use exif::{Field, In, Tag, Value};
+        let field = |tag, value| Field {
+            tag,
+            ifd_num: In::PRIMARY,
+            value,
+        };
+        let fields = [
+            field(Tag::ExposureTime, Value::Rational(vec![t.into()])),
+            field(Tag::FNumber, Value::Rational(vec![n.into()])),
+            field(Tag::PhotographicSensitivity, Value::Short(vec![iso])),
+        ];
+        let mut writer = exif::experimental::Writer::new();
+        fields.iter().for_each(|f| writer.push_field(f));
+        let mut tiff = std::io::Cursor::new(Vec::new());
+        writer.write(&mut tiff, false).unwrap();
+        // An APP1 segment right after the JPEG's start-of-image marker.
+        let mut app1 = b"Exif\0\0".to_vec();
+        app1.extend(tiff.into_inner());
+        let mut out = jpg[..2].to_vec();
+        out.extend([0xFF, 0xE1]);
+        out.extend(((app1.len() + 2) as u16).to_be_bytes());
+        out.extend(app1);
+        out.extend(&jpg[2..]);
+        jpg = out;
+    }
+    std::fs::write(path, jpg).unwrap();
+}
+
+/// Photos taken at different exposures land on one radiance scale: each is multiplied by the
+/// median exposure (t · ISO / N²) over the median of its own; ISO counts like time; a set that
+/// mixes photos with and without exposure tags, or a tag that is not a positive number, is an
+/// error naming the file (and the tag).
+#[test]
+fn exif_exposure_puts_photos_on_one_scale() {
+    use relit_engine::scene::{exposure, synth};
+    let dir = common::tempdir("exif").join("room");
+    let opts = synth::SynthOptions {
+        views: 3,
+        width: 16,
+        height: 12,
+        ..Default::default()
+    };
+    synth::write_room(&dir, SceneFormat::Relit, &opts).unwrap();
+    let mut scene = Scene::load(&dir).unwrap();
+    // 1/100 s, 1/50 s and 1/100 s at ISO 400, all at f/2: exposures 1, 2 and 4.
+    let exps = [
+        ((1, 100), (2, 1), 100),
+        ((1, 50), (2, 1), 100),
+        ((1, 100), (2, 1), 400),
+    ];
+    for (v, e) in scene.views.iter_mut().zip(exps) {
+        v.image = v.image.with_extension("jpg");
+        jpeg_with_exif(&v.image, (16, 12), 100, Some(e));
+    }
+    let s = exposure::scales(&scene.views).unwrap();
+    assert_eq!(
+        s,
+        vec![2.0, 1.0, 0.5],
+        "the median exposure (2) over each photo's"
+    );
+    let plain = relit_engine::scene::image::load_rgb(&scene.views[0].image).unwrap();
+    let imgs = scene.view_images().unwrap();
+    for (img, k) in imgs.iter().zip(&s) {
+        let want = plain.pixels[0][0] * k;
+        assert!(
+            (img.pixels[0][0] - want).abs() < 1e-6 * want.max(1.0),
+            "{} vs {want}",
+            img.pixels[0][0]
+        );
+    }
+    // One photo without EXIF among photos with it.
+    jpeg_with_exif(&scene.views[1].image, (16, 12), 100, None);
+    let e = exposure::scales(&scene.views).unwrap_err().to_string();
+    assert!(
+        e.contains(&scene.views[1].image.display().to_string()) && e.contains("EXIF"),
+        "{e}"
+    );
+    // An f-number of zero.
+    jpeg_with_exif(
+        &scene.views[1].image,
+        (16, 12),
+        100,
+        Some(((1, 50), (0, 1), 100)),
+    );
+    let e = exposure::scales(&scene.views).unwrap_err().to_string();
+    assert!(e.contains("FNumber") && e.contains("positive"), "{e}");
+    // No photo with EXIF (or EXR photos): unchanged.
+    for v in &scene.views {
+        jpeg_with_exif(&v.image, (16, 12), 100, None);
+    }
+    assert_eq!(exposure::scales(&scene.views).unwrap(), vec![1.0; 3]);
+}

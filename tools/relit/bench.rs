@@ -382,11 +382,7 @@ fn bake_bench(
         crate::Quality::Final => BakeParams::final_quality(),
     };
     let gpu = crate::open_gpu(opts)?;
-    let images = scene
-        .views
-        .iter()
-        .map(|v| relit_engine::scene::image::load_rgb(&v.image))
-        .collect::<relit_engine::Result<Vec<_>>>()?;
+    let images = scene.view_images()?;
     let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
     let geom = relit_engine::bake::run::bake_mesh(&scene, &p);
     let mesh = RayScene::new(&gpu, &geom.positions, &geom.triangles)?;

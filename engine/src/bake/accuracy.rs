@@ -88,11 +88,7 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, p: &super::BakeParams) -> Result<
     let gt = scene.root.join(&syn.ground_truth);
     let mesh = RayScene::new(gpu, &geom.positions, &geom.triangles)?;
     let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
-    let imgs = scene
-        .views
-        .iter()
-        .map(|v| load_rgb(&v.image))
-        .collect::<Result<Vec<_>>>()?;
+    let imgs = scene.view_images()?;
     let d = ViewData::build(gpu, &mesh, &cams, &imgs)?;
     let albedo = cache.read_albedo(geom.positions.len())?;
     let npix = d.pixels();

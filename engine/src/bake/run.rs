@@ -201,11 +201,7 @@ struct Setup {
 
 impl Setup {
     fn new(gpu: &Arc<Gpu>, scene: &Scene, p: &BakeParams) -> Result<Setup> {
-        let images = scene
-            .views
-            .iter()
-            .map(|v| load_rgb(&v.image))
-            .collect::<Result<Vec<_>>>()?;
+        let images = scene.view_images()?;
         let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
         let geom = bake_mesh(scene, p);
         let mesh = RayScene::new(gpu, &geom.positions, &geom.triangles)?;

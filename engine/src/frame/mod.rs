@@ -25,7 +25,7 @@ use crate::gpu::{
 };
 use crate::net::{Network, Storage, Tensor, INPUT_CHANNELS};
 use crate::raster::{Gbuffer, GbufferPass};
-use crate::scene::{image::load_rgb, Camera, Light, Scene};
+use crate::scene::{Camera, Light, Scene};
 
 /// At most this many input views take part in one frame (`constants.table`): the views whose
 /// cameras are nearest the novel camera.
@@ -361,8 +361,7 @@ pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
         }
         BakeCache::load_map(path)
     };
-    for v in &scene.views {
-        let img = load_rgb(&v.image)?;
+    for (v, img) in scene.views.iter().zip(scene.view_images()?) {
         m.width = img.width;
         m.height = img.height;
         m.img

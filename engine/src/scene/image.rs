@@ -98,7 +98,7 @@ pub fn image_size(path: &Path) -> Result<(u32, u32)> {
     }
 }
 
-fn is_exr(path: &Path) -> bool {
+pub(crate) fn is_exr(path: &Path) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("exr"))

@@ -6,6 +6,7 @@
 pub mod camera;
 mod colmap;
 pub mod coverage;
+pub mod exposure;
 pub mod files;
 pub mod image;
 mod json;
@@ -304,6 +305,21 @@ impl Scene {
         }
     }
 
+    /// The views' photos as radiance on one scale: each decoded (8-bit ones from sRGB) and
+    /// multiplied by its exposure scale from EXIF ([`exposure::scales`]).
+    pub fn view_images(&self) -> Result<Vec<RgbImage>> {
+        let scales = exposure::scales(&self.views)?;
+        (self.views.iter().zip(scales))
+            .map(|(v, s)| {
+                let mut img = image::load_rgb(&v.image)?;
+                if s != 1.0 {
+                    img.pixels.iter_mut().flatten().for_each(|c| *c *= s);
+                }
+                Ok(img)
+            })
+            .collect()
+    }
+
     /// Loads every image and checks it against its camera (size, finite values).
     pub fn check_images(&self) -> Result<()> {
         for v in &self.views {
@@ -319,6 +335,7 @@ impl Scene {
             }
             image::load_rgb(&v.image)?;
         }
+        exposure::scales(&self.views)?;
         Ok(())
     }
 
