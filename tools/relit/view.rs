@@ -315,11 +315,8 @@ impl App {
         let Some((file, rec)) = &self.recorder else {
             bail!("F6 saves a recorded path: start the viewer with --record PATH.json");
         };
-        let lit = rec.keys.iter().flat_map(|k| k.intensities.iter());
-        if let Some((name, _)) = lit
-            .filter(|(n, &v)| v != 0.0 && !self.home.contains_key(*n))
-            .next()
-        {
+        let mut lit = rec.keys.iter().flat_map(|k| k.intensities.iter());
+        if let Some((name, _)) = lit.find(|(n, &v)| v != 0.0 && !self.home.contains_key(*n)) {
             bail!("light \"{name}\" was added in the viewer and is not in scene.json, so `relit fly` would not know it: press F5 to save the lights, then F6");
         }
         rec.save(file, &self.home)?;

@@ -634,7 +634,7 @@ impl Renderer {
         lighting: &Lighting,
         mode: Mode,
         exposure: f32,
-        mut timer: Option<&mut Timer>,
+        timer: Option<&mut Timer>,
     ) -> Result<()> {
         if mode.needs_network() && self.net.is_none() {
             return Err(Error::Other(format!(
@@ -732,7 +732,7 @@ impl Renderer {
         let inputs = mode.needs_network() || !self.display_only;
         let gpu = self.gpu.clone();
         let res = gpu.submit(|cmd| -> Result<()> {
-            let mut g = Graph::new(&gpu, cmd, timer.as_deref_mut());
+            let mut g = Graph::new(&gpu, cmd, timer);
             self.resources(&mut g, b);
             g.external(
                 Some("g-buffer"),
