@@ -28,8 +28,21 @@ fn tiny(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>) -> (Tiny, RayScene) {
         .map(|c| synth::shade(&mesh, &albedo, c, &lights[0]))
         .collect();
     let rs = RayScene::new(gpu, &mesh.positions, &mesh.triangles).unwrap();
-    let data = ViewData::build(gpu, &rs, &cams, &imgs).unwrap();
+    let mut data = ViewData::build(gpu, &rs, &cams, &imgs).unwrap();
+    data.mark_clipped(&clip_some(imgs));
     (Tiny { mesh, data }, rs)
+}
+
+/// The images as photos with every 31st pixel clipped: every reference test then also checks
+/// that the gathers leave clipped pixels out, while the room keeps the coverage its other
+/// assertions were measured with (clipping the brightest 1% removes most of the lit floor).
+fn clip_some(imgs: Vec<relit_engine::scene::RgbImage>) -> Vec<relit_engine::scene::Photo> {
+    imgs.into_iter()
+        .map(|image| relit_engine::scene::Photo {
+            clipped: (0..image.pixels.len()).map(|i| i % 31 == 0).collect(),
+            image,
+        })
+        .collect()
 }
 
 /// The test room's lights, the ceiling quad first. It emits upwards (edge_u × edge_v = +Y);
@@ -371,6 +384,7 @@ fn albedo_mesh_matches_cpu_reference() {
         },
         radiance: [1.0; 3],
         original: true,
+        estimated: false,
     }];
     let gl = source_irradiance::original_lights(&lights);
     let g = AlbedoMesh::new(&gpu, &lights)

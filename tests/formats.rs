@@ -592,3 +592,47 @@ fn exif_exposure_puts_photos_on_one_scale() {
     }
     assert_eq!(exposure::scales(&scene.views).unwrap(), vec![1.0; 3]);
 }
+
+/// 8-bit photos mark the pixels where a channel reached the top codes (≥ 250 of 255: JPEG
+/// rings around a saturated region) as clipped; 16-bit PNG at its own top; EXR never clips.
+#[test]
+fn photos_mark_their_clipped_pixels() {
+    use relit_engine::scene::image::{load_photo, write_exr};
+    let dir = common::tempdir("clipped");
+    let png = dir.join("a.png");
+    let px = [[255, 10, 10], [249, 249, 249], [250, 0, 0], [128, 128, 128]];
+    let img = image::RgbImage::from_fn(2, 2, |x, y| image::Rgb(px[(y * 2 + x) as usize]));
+    img.save(&png).unwrap();
+    let p = load_photo(&png).unwrap();
+    assert_eq!(p.clipped, [true, false, true, false]);
+    assert_eq!(p.clipped_count(), 2);
+    assert!(
+        (p.image.pixels[0][0] - 1.0).abs() < 1e-6,
+        "values stay decoded"
+    );
+
+    let png16 = dir.join("b.png");
+    let img16 = image::ImageBuffer::<image::Rgb<u16>, _>::from_fn(2, 1, |x, _| {
+        image::Rgb([if x == 0 { 65535 } else { 60000 }; 3])
+    });
+    img16.save(&png16).unwrap();
+    assert_eq!(load_photo(&png16).unwrap().clipped, [true, false]);
+
+    let grey = dir.join("c.png");
+    image::RgbImage::from_pixel(3, 2, image::Rgb([90; 3]))
+        .save(&grey)
+        .unwrap();
+    assert!(
+        load_photo(&grey).unwrap().clipped.is_empty(),
+        "none clipped"
+    );
+
+    let exr = dir.join("d.exr");
+    let mut bright = relit_engine::scene::RgbImage::new(2, 1);
+    bright.pixels[0] = [40.0, 40.0, 40.0];
+    write_exr(&exr, &bright).unwrap();
+    assert!(
+        load_photo(&exr).unwrap().clipped.is_empty(),
+        "EXR is radiance"
+    );
+}

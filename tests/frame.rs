@@ -93,6 +93,7 @@ fn tiny() -> Tiny {
         },
         radiance: [40.0, 30.0, 20.0],
         original: false,
+        estimated: false,
     };
     let lights = vec![
         disk("a", eye + fwd * 0.8 + fwd.cross(Vec3::Y) * 0.1, -fwd),
@@ -627,6 +628,7 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
         },
         radiance: [30.0, 30.0, 30.0],
         original: false,
+        estimated: false,
     };
     r.set_live_light(1, &moved).unwrap();
     assert!(r.refine_live().unwrap() && r.refine_live().unwrap());
@@ -655,6 +657,7 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
         },
         radiance: [20.0, 10.0, 5.0],
         original: false,
+        estimated: false,
     };
     r.set_live_light(2, &new).unwrap();
     r.refine_live().unwrap();

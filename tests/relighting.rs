@@ -189,3 +189,86 @@ fn relighting_is_unbiased_where_few_views_see_the_original_lights() {
         assert!((0.85..=1.1).contains(&m), "median ratio {m:.3}");
     }
 }
+
+/// Re-saves `dir`'s EXR photos as 8-bit sRGB JPEGs at `exposure` (what a camera writes: the
+/// lights clip) and drops the declared original lights from scene.json.
+fn as_jpeg_capture_without_original_lights(dir: &Path, exposure: f32) {
+    use relit_engine::scene::image::linear_to_srgb;
+    let path = dir.join("scene.json");
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    for v in doc["views"].as_array_mut().unwrap() {
+        let exr = dir.join(v["image"].as_str().unwrap());
+        let img = load_rgb(&exr).unwrap();
+        let rgb: Vec<u8> = (img.pixels.iter())
+            .flat_map(|p| p.map(|c| (linear_to_srgb(c * exposure) * 255.0 + 0.5) as u8))
+            .collect();
+        let buf = image::RgbImage::from_raw(img.width, img.height, rgb).unwrap();
+        let jpg = exr.with_extension("jpg");
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&jpg).unwrap());
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut f, 95)
+            .encode_image(&buf)
+            .unwrap();
+        let rel = v["image"].as_str().unwrap().replace(".exr", ".jpg");
+        v["image"] = rel.into();
+    }
+    let lights = doc["lights"].as_array_mut().unwrap();
+    let originals: Vec<serde_json::Value> = (lights.iter())
+        .filter(|l| l["original"] == true)
+        .map(|l| l["name"].clone())
+        .collect();
+    lights.retain(|l| l["original"] != true);
+    // The truth is rendered: its conditions no longer name what the scene does not declare.
+    for c in doc["synthetic"]["conditions"].as_array_mut().unwrap() {
+        c["lights"]
+            .as_array_mut()
+            .unwrap()
+            .retain(|n| !originals.contains(n));
+    }
+    std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+}
+
+#[test]
+fn clipped_lights_are_found_in_jpeg_photos_and_the_bake_stays_unbiased() {
+    // Appendix A: hand_room's photos as JPEGs in which the ceiling panel (radiance 10) clips,
+    // its declaration removed; `scene find-lights` must place it and estimate its power.
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/hand_room");
+    let dir = common::tempdir("clipped-lights");
+    for e in std::fs::read_dir(&src).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), dir.join(e.file_name())).unwrap();
+    }
+    common::render_ground_truth(&dir, &["--spp", "128"]);
+    let truth = Scene::load(&dir).unwrap();
+    let panel = truth.lights.iter().find(|l| l.original).unwrap().clone();
+    as_jpeg_capture_without_original_lights(&dir, 1.0);
+    let undeclared = Scene::load(&dir).unwrap();
+    let photos = undeclared.view_photos().unwrap();
+    let clipped: usize = photos.iter().map(|p| p.clipped_count()).sum();
+    assert!(
+        clipped > 100,
+        "the panel must clip: {clipped} clipped pixels"
+    );
+
+    let (code, so, se) = common::run_relit(&["scene", "find-lights", dir.to_str().unwrap()]);
+    assert_eq!(code, 0, "{so}{se}");
+    eprintln!("{so}");
+    let found = Scene::load(&dir).unwrap();
+    let est: Vec<_> = found.lights.iter().filter(|l| l.estimated).collect();
+    assert_eq!(est.len(), 1, "one light clips: {so}");
+    let e = est[0];
+    assert!(e.original);
+    let dist = e.shape.center().distance(panel.shape.center());
+    let power = |l: &relit_engine::scene::Light| lum(l.radiance) * l.shape.area();
+    let ratio = power(e) / power(&panel);
+    eprintln!("estimated panel: {dist:.3} m off, power {ratio:.3} of the truth's");
+    assert!(dist <= 0.10, "placed {dist:.3} m from the panel");
+    assert!(
+        (0.8..=1.2).contains(&ratio),
+        "power {ratio:.3} of the truth's"
+    );
+
+    // With the light found, E_src is unbiased again (it was the point of Appendix A).
+    let a = bake_and_evaluate(&found);
+    assert!((0.9..=1.1).contains(&a.e_src.ratio), "E_src: {:?}", a.e_src);
+}

@@ -804,6 +804,7 @@ fn light_coverage_counts_the_views_that_see_each_original_light() {
         shape,
         radiance: [1.0; 3],
         original,
+        estimated: false,
     };
     let lights = vec![
         // Behind the wall, facing the cameras: the wall hides it.

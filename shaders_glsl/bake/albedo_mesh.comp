@@ -37,7 +37,7 @@ void main() {
     float wsum = 0.0;
     for (uint j = 0u; j < pc.nviews; ++j) {
         int q = visible_pixel(j, p, pc.width, pc.height);
-        if (q < 0 || near_light(q, pc.width, pc.height, pc.nlights)) continue;
+        if (q < 0 || clipped(q) || near_light(q, pc.width, pc.height, pc.nlights)) continue;
         vec4 e = e_src[q];
         // Pixels without an irradiance estimate (no ray found a view) carry no albedo.
         if (e.w <= 0.0 || max(e.r, max(e.g, e.b)) <= 1e-6) continue;

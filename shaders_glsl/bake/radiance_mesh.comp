@@ -29,7 +29,7 @@ void main() {
     float wsum = 0.0;
     for (uint j = 0u; j < pc.nviews; ++j) {
         int q = visible_pixel(j, p, pc.width, pc.height);
-        if (q < 0 || near_light(q, pc.width, pc.height, pc.nlights)) continue;
+        if (q < 0 || clipped(q) || near_light(q, pc.width, pc.height, pc.nlights)) continue;
         float w = 1.0 / max(distance(cam_center(cams[j]), p), 1e-3);
         sum += w * images[q].rgb;
         wsum += w;

@@ -85,7 +85,7 @@ vec4 source_irradiance(vec3 x, vec3 n, uint exclude, uint key) {
         if (meets_light(o, d, t, y)) { on_light += 1u; continue; }
         if (!hit) continue;
         int best_px = best_view(y, d, exclude, pc.nviews, pc.width, pc.height);
-        if (best_px >= 0 && !near_light(best_px, pc.width, pc.height, pc.nlights)) {
+        if (best_px >= 0 && !clipped(best_px) && !near_light(best_px, pc.width, pc.height, pc.nlights)) {
             sum += images[best_px].rgb;
             valid += 1u;
             continue;

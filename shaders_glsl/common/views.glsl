@@ -25,6 +25,10 @@ layout(set = 0, binding = VIEWS_BINDING, scalar) uniform Views {
 // agrees with view j's depth map within this fraction (MVS meshes are only this good).
 #include "constants.glsl"
 
+// Whether global pixel q clipped in its photo (images' w = 0): a lower bound of the radiance,
+// which the gathers leave out.
+bool clipped(int q) { return images[q].w <= 0.0; }
+
 // Pixel index (into a view's maps) where p projects in view j when j sees p; -1 otherwise.
 int visible_pixel(uint j, vec3 p, uint W, uint H) {
     Camera c = cams[j];

@@ -280,6 +280,18 @@ enum SceneCmd {
         #[arg(long)]
         quick: bool,
     },
+    /// Find the original lights the photos clip (Appendix A) and estimate their emittance; they
+    /// are written to the scene (scene.json, or lights.json beside other formats) as original
+    /// lights marked `estimated`, replacing earlier estimated ones.
+    FindLights {
+        dir: PathBuf,
+        /// Print what was found; write nothing.
+        #[arg(long)]
+        dry_run: bool,
+        /// Voxel edge in metres (a pixel's footprint where the photos are coarser).
+        #[arg(long, default_value_t = 0.02)]
+        voxel: f32,
+    },
     /// Write the small procedural test room (CPU-shaded EXR views) in one of the formats.
     Synth {
         dir: PathBuf,
@@ -466,6 +478,55 @@ fn info(opts: &GpuOptions) -> Result<()> {
     Ok(())
 }
 
+fn find_lights(opts: &GpuOptions, dir: &std::path::Path, dry_run: bool, voxel: f32) -> Result<()> {
+    use relit_engine::bake::light_levels::{self, FindParams};
+    if !(voxel.is_finite() && voxel > 0.0) {
+        anyhow::bail!("--voxel {voxel}: expected a positive length in metres");
+    }
+    let mut s = Scene::load(dir)?;
+    let gpu = open_gpu(opts)?;
+    let p = FindParams {
+        voxel,
+        ..Default::default()
+    };
+    let f = light_levels::find(&gpu, &s, &p)?;
+    println!(
+        "clipped pixels: {} over {} views; voxel {:.3} m",
+        f.clipped_pixels,
+        s.views.len(),
+        f.voxel
+    );
+    if f.clipped_pixels == 0 {
+        println!("no photo clips (8-bit photos clip at code 250 of 255; EXR photos never do): nothing to find");
+    }
+    for l in &f.lights {
+        let c = l.light.shape.center();
+        println!(
+            "  {}: quad at [{:.2}, {:.2}, {:.2}], area {:.3} m², radiance [{:.3}, {:.3}, {:.3}], power {:.2} W (luminance); {} clipped pixels in {} views, {} pixel pairs",
+            l.light.name, c.x, c.y, c.z, l.light.shape.area(),
+            l.light.radiance[0], l.light.radiance[1], l.light.radiance[2],
+            { let w = l.power(); 0.2126 * w[0] + 0.7152 * w[1] + 0.0722 * w[2] }, l.pixels, l.views, l.pairs
+        );
+        if l.pairs == 0 || l.light.radiance.iter().all(|&r| r == 0.0) {
+            println!(
+                "  warning: {}'s emittance could not be estimated (no pixel it lights pairs with one it does not): set its radiance by hand",
+                l.light.name
+            );
+        }
+    }
+    if dry_run {
+        return Ok(());
+    }
+    s.lights = light_levels::replace_estimated(&s, &f.lights);
+    s.save_lights()?;
+    println!(
+        "wrote {} estimated light(s) to {}",
+        f.lights.len(),
+        s.root.display()
+    );
+    Ok(())
+}
+
 fn scene_check(dir: &std::path::Path, quick: bool) -> Result<()> {
     let s = Scene::load(dir)?;
     if !quick {
@@ -512,12 +573,31 @@ fn scene_check(dir: &std::path::Path, quick: bool) -> Result<()> {
         println!(
             "  {} ({kind}{}) at [{:.2}, {:.2}, {:.2}], area {:.3} m², radiance {:?}",
             l.name,
-            if l.original { ", original" } else { "" },
+            match (l.original, l.estimated) {
+                (true, true) => ", original, estimated from clipped pixels",
+                (true, false) => ", original",
+                _ => "",
+            },
             c.x,
             c.y,
             c.z,
             l.shape.area(),
             l.radiance
+        );
+    }
+    if !quick {
+        let clipped: usize = s.view_photos()?.iter().map(|p| p.clipped_count()).sum();
+        println!("clipped pixels: {clipped}");
+        if clipped > 0 && !s.lights.iter().any(|l| l.estimated) {
+            println!(
+                "note: the photos clip; if a light clips, `relit scene find-lights {}` finds it and estimates its emittance (Appendix A)",
+                dir.display()
+            );
+        }
+    }
+    if !s.lights.iter().any(|l| l.original) {
+        println!(
+            "warning: no original light is declared or found. A light the photos show clipped is found by `relit scene find-lights`; one no photo shows cannot be found from the photos: declare it in scene.json (README › Scene formats)"
         );
     }
     // The proxy mesh is loaded in both modes, so --quick checks coverage too.
@@ -697,6 +777,14 @@ fn main() {
         Cmd::Scene {
             cmd: SceneCmd::Check { dir, quick },
         } => scene_check(dir, *quick),
+        Cmd::Scene {
+            cmd:
+                SceneCmd::FindLights {
+                    dir,
+                    dry_run,
+                    voxel,
+                },
+        } => find_lights(&opts, dir, *dry_run, *voxel),
         Cmd::Scene {
             cmd:
                 SceneCmd::Synth {

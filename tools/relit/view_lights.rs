@@ -154,6 +154,7 @@ impl LightEditor {
             },
             radiance: [rad; 3],
             original: false,
+            estimated: false,
         })
     }
 }
@@ -183,7 +184,7 @@ fn save(scene: &mut Scene, lighting: &Lighting) -> Result<()> {
     };
     scene.presets.retain(|p| p.name != "viewer");
     scene.presets.push(preset);
-    relit_engine::scene::write_lights(&scene.root, &scene.lights, &scene.presets)?;
+    scene.save_lights()?;
     Ok(())
 }
 

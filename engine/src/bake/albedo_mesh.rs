@@ -97,10 +97,9 @@ pub fn reference(
             let p = Vec3::from(*p);
             let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
             for j in 0..d.cameras.len() {
-                let Some(q) = d
-                    .visible_pixel(j, p)
-                    .filter(|&q| !super::source_irradiance::near_light(d, lights, q))
-                else {
+                let Some(q) = d.visible_pixel(j, p).filter(|&q| {
+                    !d.clipped(q) && !super::source_irradiance::near_light(d, lights, q)
+                }) else {
                     continue;
                 };
                 let e = e_src[q];

@@ -7,6 +7,7 @@ pub mod added_light;
 pub mod albedo_mesh;
 pub mod cache;
 pub mod denoise;
+pub mod light_levels;
 pub mod mirror;
 pub mod radiance_mesh;
 pub mod random;

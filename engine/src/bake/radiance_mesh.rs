@@ -83,7 +83,9 @@ pub fn reference(positions: &[[f32; 3]], d: &ViewData, lights: &[GpuLight]) -> V
             let p = Vec3::from(*p);
             let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
             for j in 0..d.cameras.len() {
-                let Some(q) = d.visible_pixel(j, p).filter(|&q| !near_light(d, lights, q)) else {
+                let Some(q) =
+                    (d.visible_pixel(j, p)).filter(|&q| !d.clipped(q) && !near_light(d, lights, q))
+                else {
                     continue;
                 };
                 let w = 1.0 / (d.cameras[j].center() - p).length().max(1e-3);

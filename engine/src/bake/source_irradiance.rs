@@ -131,6 +131,20 @@ impl SourceIrradiance {
         seed: u32,
         out: &Buffer,
     ) -> Result<()> {
+        let r = (view, samples, seed, PART_ALL);
+        self.record_parts(cmd, mesh, radiance, views, r, out)
+    }
+
+    /// `record` of the estimator's `parts` alone ([`PART_DIRECT`], [`PART_INDIRECT`]).
+    fn record_parts(
+        &self,
+        cmd: vk::CommandBuffer,
+        mesh: &RayScene,
+        radiance: &Buffer,
+        views: &GpuViews,
+        (view, samples, seed, parts): (u32, u32, u32, u32),
+        out: &Buffer,
+    ) -> Result<()> {
         let push = Push {
             view,
             width: views.width,
@@ -140,7 +154,7 @@ impl SourceIrradiance {
             seed,
             nlights: self.nlights,
             count: 0,
-            parts: PART_ALL,
+            parts,
         };
         let mut binds = vec![
             ("tlas", Bind::Accel(mesh.tlas.raw)),
@@ -185,6 +199,21 @@ impl SourceIrradiance {
     ) -> Result<Vec<[f32; 4]>> {
         super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
             self.record(cmd, mesh, radiance, views, view, samples, seed, out)
+        })
+    }
+
+    /// Runs the `parts` of the estimator for one view and reads the result back.
+    pub fn run_parts(
+        &self,
+        mesh: &RayScene,
+        radiance: &Buffer,
+        views: &GpuViews,
+        (view, samples, seed): (u32, u32, u32),
+        parts: u32,
+    ) -> Result<Vec<[f32; 4]>> {
+        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
+            let r = (view, samples, seed, parts);
+            self.record_parts(cmd, mesh, radiance, views, r, out)
         })
     }
 
@@ -317,7 +346,7 @@ pub(super) fn estimate(
         };
         let l = match d
             .best_view(y, dir, exclude)
-            .filter(|&q| !near_light(d, lights, q))
+            .filter(|&q| !d.clipped(q) && !near_light(d, lights, q))
         {
             Some(q) => [d.img[q][0], d.img[q][1], d.img[q][2], 1.0],
             None => mesh_radiance(r.mesh, r.radiance, h.tri, h.bary),

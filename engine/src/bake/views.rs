@@ -23,7 +23,8 @@ pub struct ViewData {
     /// Per view and pixel: world position and camera depth (w = 0: no surface).
     pub pos: Vec<[f32; 4]>,
     pub nrm: Vec<[f32; 4]>,
-    /// Per view and pixel: linear RGB radiance.
+    /// Per view and pixel: linear RGB radiance; w = 1, or 0 where the photo clipped (a lower
+    /// bound, not radiance: the gathers leave it out, `clipped` in views.glsl).
     pub img: Vec<[f32; 4]>,
     /// Per view and pixel: proxy triangle id + 1 (0: none).
     pub tri: Vec<u32>,
@@ -70,6 +71,21 @@ impl ViewData {
 
     pub fn pixels(&self) -> usize {
         (self.width * self.height) as usize
+    }
+
+    /// Marks the photos' clipped pixels (w = 0 in `img`); `photos` in view order.
+    pub fn mark_clipped(&mut self, photos: &[crate::scene::Photo]) {
+        let n = self.pixels();
+        for (j, ph) in photos.iter().enumerate() {
+            for (i, _) in ph.clipped.iter().enumerate().filter(|(_, &c)| c) {
+                self.img[j * n + i][3] = 0.0;
+            }
+        }
+    }
+
+    /// Whether global pixel `q` clipped in its photo.
+    pub fn clipped(&self, q: usize) -> bool {
+        self.img[q][3] <= 0.0
     }
 
     /// CPU mirror of `visible_pixel` in views.glsl: the global pixel index where view `j`

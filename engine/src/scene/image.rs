@@ -1,6 +1,6 @@
-//! Images: EXR (half or float, RGB or RGBA) kept linear; PNG/JPEG decoded from sRGB to linear.
-//! Headers are checked before any pixel is decoded, so a file claiming 100000×100000 is refused
-//! without allocating for it.
+//! Images: EXR (half or float, RGB or RGBA) kept linear; PNG/JPEG decoded from sRGB to linear,
+//! with the pixels the sensor clipped marked (`Photo`). Headers are checked before any pixel is
+//! decoded, so a file claiming 100000×100000 is refused without allocating for it.
 
 use std::path::Path;
 
@@ -191,40 +191,42 @@ fn decode_exr_grey(data: &[u8]) -> Option<RgbImage> {
     Some(out)
 }
 
+/// A photo as the bake reads it: linear radiance, and which pixels clipped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Photo {
+    pub image: RgbImage,
+    /// Per pixel: a channel reached the top of an integer format's range, so the value is a
+    /// lower bound, not radiance. Empty when nothing clipped (and always for EXR).
+    pub clipped: Vec<bool>,
+}
+
+impl Photo {
+    pub fn clipped_count(&self) -> usize {
+        self.clipped.iter().filter(|&&c| c).count()
+    }
+}
+
+/// A channel at or above this fraction of an integer format's top code clipped: JPEG's
+/// block transform rings around a saturated region, leaving codes a little under 255 there.
+pub const CLIP_FRACTION: f32 = 0.98;
+
 /// Loads an image as linear RGB. Refuses non-finite or negative-infinite pixels, naming the first.
 pub fn load_rgb(path: &Path) -> Result<RgbImage> {
+    Ok(load_photo(path)?.image)
+}
+
+/// Loads an image as linear RGB with its clipped pixels (see [`Photo`]).
+pub fn load_photo(path: &Path) -> Result<Photo> {
     let (w, h) = image_size(path)?;
-    let img = if is_exr(path) {
-        decode_exr(path)?
-    } else {
-        let data = super::files::read(path, super::files::FileKind::Image)?;
-        check_jpeg_end(path, &data)?;
-        let mut reader = image::ImageReader::new(std::io::Cursor::new(data))
-            .with_guessed_format()
-            .map_err(|e| Error::io(path, e))?;
-        let mut limits = image::Limits::default();
-        limits.max_image_width = Some(MAX_IMAGE_DIM);
-        limits.max_image_height = Some(MAX_IMAGE_DIM);
-        reader.limits(limits);
-        let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader.decode()))
-            .map_err(|_| Error::input(path, "the image decoder failed on this file (corrupt)"))?
-            .map_err(|e| Error::input(path, format!("cannot decode image: {e}")))?
-            .into_rgb32f();
-        RgbImage {
-            width: decoded.width(),
-            height: decoded.height(),
-            pixels: decoded
-                .pixels()
-                .map(|p| {
-                    [
-                        srgb_to_linear(p[0]),
-                        srgb_to_linear(p[1]),
-                        srgb_to_linear(p[2]),
-                    ]
-                })
-                .collect(),
+    let photo = if is_exr(path) {
+        Photo {
+            image: decode_exr(path)?,
+            clipped: Vec::new(),
         }
+    } else {
+        decode_integer(path)?
     };
+    let img = &photo.image;
     if (img.width, img.height) != (w, h) {
         return Err(Error::input(path, "decoded size differs from the header"));
     }
@@ -243,7 +245,46 @@ pub fn load_rgb(path: &Path) -> Result<RgbImage> {
             ),
         ));
     }
-    Ok(img)
+    Ok(photo)
+}
+
+/// PNG, JPEG and the other formats of the `image` crate: sRGB decoded to linear; in integer
+/// formats, pixels with a channel at the top code marked clipped.
+fn decode_integer(path: &Path) -> Result<Photo> {
+    let data = super::files::read(path, super::files::FileKind::Image)?;
+    check_jpeg_end(path, &data)?;
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(data))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_DIM);
+    limits.max_image_height = Some(MAX_IMAGE_DIM);
+    reader.limits(limits);
+    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader.decode()))
+        .map_err(|_| Error::input(path, "the image decoder failed on this file (corrupt)"))?
+        .map_err(|e| Error::input(path, format!("cannot decode image: {e}")))?;
+    let integer = !matches!(
+        decoded.color(),
+        image::ColorType::Rgb32F | image::ColorType::Rgba32F
+    );
+    let rgb = decoded.into_rgb32f();
+    let top = CLIP_FRACTION - 0.5 / 65535.0;
+    let mut clipped: Vec<bool> = Vec::new();
+    if integer && rgb.pixels().any(|p| p.0.iter().any(|&c| c >= top)) {
+        clipped = rgb
+            .pixels()
+            .map(|p| p.0.iter().any(|&c| c >= top))
+            .collect();
+    }
+    let pixels = rgb.pixels().map(|p| p.0.map(srgb_to_linear)).collect();
+    Ok(Photo {
+        image: RgbImage {
+            width: rgb.width(),
+            height: rgb.height(),
+            pixels,
+        },
+        clipped,
+    })
 }
 
 /// Writes a half-float RGB EXR (ZIP compressed), through a temp file and a rename.

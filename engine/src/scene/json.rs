@@ -162,6 +162,8 @@ pub(crate) enum LightDoc {
         radiance: [f32; 3],
         #[serde(default)]
         original: bool,
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        estimated: bool,
     },
     Disk {
         name: String,
@@ -171,6 +173,8 @@ pub(crate) enum LightDoc {
         radiance: [f32; 3],
         #[serde(default)]
         original: bool,
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        estimated: bool,
     },
 }
 
@@ -246,6 +250,7 @@ impl LightDoc {
                 edge_v,
                 radiance,
                 original,
+                estimated,
             } => Light {
                 name: name.clone(),
                 shape: LightShape::Quad {
@@ -255,6 +260,7 @@ impl LightDoc {
                 },
                 radiance: *radiance,
                 original: *original,
+                estimated: *estimated,
             },
             LightDoc::Disk {
                 name,
@@ -263,6 +269,7 @@ impl LightDoc {
                 radius,
                 radiance,
                 original,
+                estimated,
             } => Light {
                 name: name.clone(),
                 shape: LightShape::Disk {
@@ -272,6 +279,7 @@ impl LightDoc {
                 },
                 radiance: *radiance,
                 original: *original,
+                estimated: *estimated,
             },
         }
     }
@@ -289,6 +297,7 @@ impl LightDoc {
                 edge_v: edge_v.into(),
                 radiance: l.radiance,
                 original: l.original,
+                estimated: l.estimated,
             },
             LightShape::Disk {
                 center,
@@ -301,6 +310,7 @@ impl LightDoc {
                 radius,
                 radiance: l.radiance,
                 original: l.original,
+                estimated: l.estimated,
             },
         }
     }

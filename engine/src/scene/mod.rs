@@ -24,7 +24,7 @@ use glam::Vec3;
 
 pub use camera::{Camera, GpuCamera};
 pub use coverage::{light_coverage, LightCoverage, MIN_VIEWS_PER_LIGHT};
-pub use image::RgbImage;
+pub use image::{Photo, RgbImage};
 pub use json::{
     write_lights, CameraDoc, ConditionDoc, MaterialDoc, ObjectDoc, Synthetic, TestViewDoc,
     SCENE_FILE,
@@ -200,6 +200,9 @@ pub struct Light {
     pub radiance: [f32; 3],
     /// Part of the captured (original) lighting rather than a light the user adds.
     pub original: bool,
+    /// Found from the photos' clipped pixels (`relit scene find-lights`, Appendix A) rather
+    /// than declared: a later search replaces it; editing it is fine.
+    pub estimated: bool,
 }
 
 impl Light {
@@ -308,14 +311,24 @@ impl Scene {
     /// The views' photos as radiance on one scale: each decoded (8-bit ones from sRGB) and
     /// multiplied by its exposure scale from EXIF ([`exposure::scales`]).
     pub fn view_images(&self) -> Result<Vec<RgbImage>> {
+        Ok(self.view_photos()?.into_iter().map(|p| p.image).collect())
+    }
+
+    /// The views' photos on one radiance scale (EXIF exposure), with their clipped pixels.
+    pub fn view_photos(&self) -> Result<Vec<Photo>> {
         let scales = exposure::scales(&self.views)?;
         (self.views.iter().zip(scales))
             .map(|(v, s)| {
-                let mut img = image::load_rgb(&v.image)?;
+                let mut photo = image::load_photo(&v.image)?;
                 if s != 1.0 {
-                    img.pixels.iter_mut().flatten().for_each(|c| *c *= s);
+                    photo
+                        .image
+                        .pixels
+                        .iter_mut()
+                        .flatten()
+                        .for_each(|c| *c *= s);
                 }
-                Ok(img)
+                Ok(photo)
             })
             .collect()
     }
@@ -337,6 +350,15 @@ impl Scene {
         }
         exposure::scales(&self.views)?;
         Ok(())
+    }
+
+    /// Writes the lights and presets back where this scene's format keeps them (scene.json, or
+    /// lights.json beside a COLMAP, SIBR or transforms.json capture).
+    pub fn save_lights(&self) -> Result<()> {
+        match self.format {
+            SceneFormat::Relit => json::write_lights(&self.root, &self.lights, &self.presets),
+            _ => json::write_sidecar(&self.root, &self.lights, &self.presets),
+        }
     }
 
     pub fn preset(&self, name: &str) -> Option<&LightingPreset> {

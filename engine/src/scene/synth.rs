@@ -199,6 +199,7 @@ pub fn room_lights() -> (Vec<Light>, Vec<LightingPreset>) {
             },
             radiance: [8.0, 7.6, 7.0],
             original: true,
+            estimated: false,
         },
         Light {
             name: "lamp".into(),
@@ -209,6 +210,7 @@ pub fn room_lights() -> (Vec<Light>, Vec<LightingPreset>) {
             },
             radiance: [20.0, 14.0, 8.0],
             original: false,
+            estimated: false,
         },
     ];
     let presets = vec![LightingPreset {

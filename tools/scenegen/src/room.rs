@@ -702,6 +702,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             },
             radiance: [0.0; 3],
             original: true,
+            estimated: false,
         });
     }
     if rng.f32() < 0.5 {
@@ -717,6 +718,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             },
             radiance: [0.0; 3],
             original: true,
+            estimated: false,
         });
     }
     let originals: Vec<usize> = (0..lights.len()).collect();
@@ -772,6 +774,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             shape,
             radiance: radiance_for(CONDITION_POWER, area, tint),
             original: false,
+            estimated: false,
         });
     }
     let mut conditions = vec![(
