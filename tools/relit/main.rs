@@ -291,6 +291,9 @@ enum SceneCmd {
         /// Voxel edge in metres (a pixel's footprint where the photos are coarser).
         #[arg(long, default_value_t = 0.02)]
         voxel: f32,
+        /// Views the emittance is estimated from, spread over the capture (fewer: faster).
+        #[arg(long, default_value_t = 16)]
+        views: usize,
     },
     /// Write the small procedural test room (CPU-shaded EXR views) in one of the formats.
     Synth {
@@ -478,15 +481,24 @@ fn info(opts: &GpuOptions) -> Result<()> {
     Ok(())
 }
 
-fn find_lights(opts: &GpuOptions, dir: &std::path::Path, dry_run: bool, voxel: f32) -> Result<()> {
+fn find_lights(
+    opts: &GpuOptions,
+    dir: &std::path::Path,
+    dry_run: bool,
+    (voxel, views): (f32, usize),
+) -> Result<()> {
     use relit_engine::bake::light_levels::{self, FindParams};
     if !(voxel.is_finite() && voxel > 0.0) {
         anyhow::bail!("--voxel {voxel}: expected a positive length in metres");
     }
     let mut s = Scene::load(dir)?;
     let gpu = open_gpu(opts)?;
+    if views == 0 {
+        anyhow::bail!("--views 0: expected at least one view");
+    }
     let p = FindParams {
         voxel,
+        max_views: views,
         ..Default::default()
     };
     let f = light_levels::find(&gpu, &s, &p)?;
@@ -783,8 +795,9 @@ fn main() {
                     dir,
                     dry_run,
                     voxel,
+                    views,
                 },
-        } => find_lights(&opts, dir, *dry_run, *voxel),
+        } => find_lights(&opts, dir, *dry_run, (*voxel, *views)),
         Cmd::Scene {
             cmd:
                 SceneCmd::Synth {

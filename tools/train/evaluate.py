@@ -129,6 +129,12 @@ def truth_of(room, view, lighting):
     rd = lambda c, k: read_exr(os.path.join(room, "gt", c, f"{view}.{k}.exr"))
     d = (1 - dim) * rd("original", "diffuse") + lamp * rd("lamp", "diffuse")
     t = (1 - dim) * rd("original", "total") + lamp * rd("lamp", "total")
+    # A room saved as a camera would (tools/groundtruth/as_camera.py) is in its photos' units.
+    cam = os.path.join(room, "camera.json")
+    if os.path.exists(cam):
+        with open(cam) as f:
+            s = json.load(f)["exposure_scale"]
+        d, t = d * s, t * s
     return d, t
 
 

@@ -335,16 +335,30 @@ struct Setting<'a> {
     views: &'a GpuViews,
 }
 
-/// One equation of eq. 14 between two pixels, per channel: Σ_l a_l α_l = b.
+/// Two pixels taken to share their albedo (eq. 14): log I_p − log I_q = log E_p − log E_q, with
+/// E = E_nc + Σ_l α_l E_l. In logarithms an albedo that differs after all (a texture) only
+/// shifts the residual; divided by I, as in eq. 15, it would scale both sides together and drag
+/// α below zero (measured on a textured scenegen room).
 struct Row {
-    a: Vec<[f32; 3]>,
-    /// `a` from a second, independent estimate of E_l: the instrument that keeps the Monte
-    /// Carlo noise of `a` from pulling α towards zero (errors in variables).
-    z: Vec<[f32; 3]>,
-    b: [f32; 3],
-    /// E_nc/I of the two pixels (for the scale of the equation).
-    inv_nc: [f32; 3],
-    inv_l: Vec<[f32; 3]>,
+    /// log I_p − log I_q per channel.
+    d: [f32; 3],
+    /// E_nc at p and q per channel.
+    nc: [[f32; 3]; 2],
+    /// Per light: E_l (unit radiance) at p and q per channel.
+    l: Vec<[[f32; 3]; 2]>,
+}
+
+impl Row {
+    /// |residual| of channel `c` under `alpha`.
+    fn residual(&self, c: usize, alpha: &[f64]) -> f64 {
+        let e = |k: usize| {
+            let lit: f64 = (self.l.iter().zip(alpha))
+                .map(|(l, a)| l[k][c] as f64 * a)
+                .sum();
+            (self.nc[k][c] as f64 + lit).max(1e-12).ln()
+        };
+        (self.d[c] as f64 - e(0) + e(1)).abs()
+    }
 }
 
 /// Solves the found lights' radiance (eq. 13–15) and writes it into `lights`.
@@ -374,25 +388,18 @@ fn emittance(
     for j in (0..nv).step_by(step) {
         let r = (j as u32, p.samples, p.seed);
         let e_nc = nc.run_parts(s.mesh, &radiance, s.views, r, PART_ALL)?;
-        let direct = |seed: u32| {
-            (unit.iter())
-                .map(|u| u.run_parts(s.mesh, &radiance, s.views, (r.0, r.1, seed), PART_DIRECT))
-                .collect::<Result<Vec<_>>>()
-        };
-        let e_l = [direct(p.seed)?, direct(p.seed ^ 0x5eed)?];
+        // E_l sits inside a logarithm: more rays than E_nc keep its noise from biasing α.
+        let r_l = (r.0, 4 * r.1, r.2);
+        let e_l: Vec<Vec<[f32; 4]>> = (unit.iter())
+            .map(|u| u.run_parts(s.mesh, &radiance, s.views, r_l, PART_DIRECT))
+            .collect::<Result<_>>()?;
         pair_rows(s.data, j, &e_nc, &e_l, &dark_gpu, &mut rows);
     }
-    let alpha: Vec<[f32; 3]> = {
-        let per_channel: Vec<Vec<f32>> = (0..3).map(|c| solve(&rows, c, lights.len())).collect();
-        (0..lights.len())
-            .map(|l| [per_channel[0][l], per_channel[1][l], per_channel[2][l]])
-            .collect()
-    };
+    let per_channel: Vec<Vec<f64>> = (0..3).map(|c| solve(&rows, c, lights.len())).collect();
     for (l, f) in lights.iter_mut().enumerate() {
-        f.light.radiance = alpha[l];
-        f.pairs = rows
-            .iter()
-            .filter(|r| r.a[l].iter().any(|&a| a != 0.0))
+        f.light.radiance = [0, 1, 2].map(|c| per_channel[c][l] as f32);
+        f.pairs = (rows.iter())
+            .filter(|r| r.l[l].iter().flatten().any(|&e| e > 0.0))
             .count();
     }
     Ok(())
@@ -412,7 +419,7 @@ fn pair_rows(
     d: &ViewData,
     j: usize,
     e_nc: &[[f32; 4]],
-    e_l: &[Vec<Vec<[f32; 4]>>; 2],
+    e_l: &[Vec<[f32; 4]>],
     dark: &[super::GpuLight],
     rows: &mut Vec<Row>,
 ) {
@@ -447,26 +454,12 @@ fn pair_rows(
                 {
                     continue;
                 }
-                let inv = |e: [f32; 4], g: usize| [0, 1, 2].map(|c| e[c] / d.img[g][c].max(1e-6));
-                let (np, nq) = (inv(e_nc[ip], gp), inv(e_nc[iq], gq));
-                let diff = |e: &Vec<Vec<[f32; 4]>>| -> Vec<[f32; 3]> {
-                    (e.iter())
-                        .map(|e| {
-                            let (a, b) = (inv(e[ip], gp), inv(e[iq], gq));
-                            [0, 1, 2].map(|c| a[c] - b[c])
-                        })
-                        .collect()
-                };
-                let lp: Vec<_> = e_l[0].iter().map(|e| inv(e[ip], gp)).collect();
-                let lq: Vec<_> = e_l[0].iter().map(|e| inv(e[iq], gq)).collect();
+                let rgb = |e: [f32; 4]| [e[0], e[1], e[2]];
+                let (ip_rgb, iq_rgb) = (d.img[gp], d.img[gq]);
                 rows.push(Row {
-                    a: diff(&e_l[0]),
-                    z: diff(&e_l[1]),
-                    b: [0, 1, 2].map(|c| nq[c] - np[c]),
-                    inv_nc: [0, 1, 2].map(|c| 0.5 * (np[c] + nq[c])),
-                    inv_l: (lp.iter().zip(&lq))
-                        .map(|(a, b)| [0, 1, 2].map(|c| 0.5 * (a[c] + b[c])))
-                        .collect(),
+                    d: [0, 1, 2].map(|c| (ip_rgb[c].max(1e-6) / iq_rgb[c].max(1e-6)).ln()),
+                    nc: [rgb(e_nc[ip]), rgb(e_nc[iq])],
+                    l: e_l.iter().map(|e| [rgb(e[ip]), rgb(e[iq])]).collect(),
                 });
             }
         }
@@ -487,102 +480,32 @@ fn one_surface(d: &ViewData, p: usize, q: usize) -> bool {
     np.dot(nq).abs() > 0.95 && (xq - xp).dot(np).abs() < 0.02
 }
 
-/// α ≥ 0 of channel `c`: least squares of the rows scaled to unit inverse albedo, reweighted
-/// towards L1 (iteratively reweighted least squares), with `z` as instruments (Zᵀ A α = Zᵀ b).
-fn solve(rows: &[Row], c: usize, n: usize) -> Vec<f32> {
-    let mut alpha = vec![1.0f64; n];
-    let mut weights = vec![1.0f64; rows.len()];
-    for _ in 0..8 {
-        // Each equation divided by the pair's inverse albedo under the current α, so that dark
-        // and bright surfaces count alike.
-        let scale: Vec<f64> = (rows.iter())
-            .map(|r| {
-                let lit: f64 = (r.inv_l.iter().zip(&alpha))
-                    .map(|(l, a)| l[c] as f64 * a)
-                    .sum();
-                1.0 / (r.inv_nc[c] as f64 + lit).max(1e-9)
-            })
-            .collect();
-        let mut ata = vec![vec![0.0f64; n]; n];
-        let mut atb = vec![0.0f64; n];
-        for ((r, s), w) in rows.iter().zip(&scale).zip(&weights) {
-            let ws = w * s * s;
-            for (i, row) in ata.iter_mut().enumerate() {
-                atb[i] += ws * r.z[i][c] as f64 * r.b[c] as f64;
-                for (k, x) in row.iter_mut().enumerate() {
-                    *x += ws * r.z[i][c] as f64 * r.a[k][c] as f64;
+/// α ≥ 0 of channel `c`: the least sum of |residual| (L1: pairs across a texture edge or a
+/// shadow the proxy lacks do not pull it), light by light over a log-spaced grid and then
+/// finer around the best, two sweeps.
+fn solve(rows: &[Row], c: usize, n: usize) -> Vec<f64> {
+    let mut alpha = vec![0.0f64; n];
+    let cost = |a: &[f64]| rows.iter().map(|r| r.residual(c, a)).sum::<f64>();
+    // α_l from 1e-4 to 1e6, 20 steps a decade; then ±1 step in 40.
+    let at = |k: f64| 10f64.powf(-4.0 + k / 20.0);
+    for _ in 0..2 {
+        for l in 0..n {
+            let mut trial = alpha.clone();
+            let mut best = (cost(&alpha), alpha[l]);
+            let mut probe = |k: f64, best: &mut (f64, f64)| {
+                trial[l] = at(k);
+                let e = cost(&trial);
+                if e < best.0 {
+                    *best = (e, trial[l]);
                 }
-            }
-        }
-        alpha = nonnegative(&ata, &atb);
-        let resid: Vec<f64> = (rows.iter().zip(&scale))
-            .map(|(r, s)| {
-                let ax: f64 = (0..n).map(|i| r.a[i][c] as f64 * alpha[i]).sum();
-                ((ax - r.b[c] as f64) * s).abs()
-            })
-            .collect();
-        let mut sorted = resid.clone();
-        sorted.sort_by(f64::total_cmp);
-        let floor = (sorted.get(sorted.len() / 2).copied().unwrap_or(0.0) * 0.1).max(1e-9);
-        weights = resid.iter().map(|r| 1.0 / r.max(floor)).collect();
-    }
-    alpha.iter().map(|&a| a as f32).collect()
-}
-
-/// The solution of `ata x = atb` with x ≥ 0: unknowns that come out negative are fixed at zero
-/// and the rest solved again.
-fn nonnegative(ata: &[Vec<f64>], atb: &[f64]) -> Vec<f64> {
-    let n = atb.len();
-    let mut free = vec![true; n];
-    loop {
-        let idx: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
-        let m: Vec<Vec<f64>> = idx
-            .iter()
-            .map(|&i| idx.iter().map(|&k| ata[i][k]).collect())
-            .collect();
-        let b: Vec<f64> = idx.iter().map(|&i| atb[i]).collect();
-        let sol = gauss(m, b);
-        let mut x = vec![0.0; n];
-        for (k, &i) in idx.iter().enumerate() {
-            x[i] = sol[k];
-        }
-        match idx.iter().find(|&&i| x[i] < 0.0) {
-            Some(&i) => free[i] = false,
-            None => return x,
+            };
+            (0..=200).for_each(|k| probe(k as f64, &mut best));
+            let k0 = 20.0 * (best.1.max(1e-4).log10() + 4.0);
+            (-20..=20).for_each(|k| probe(k0 + k as f64 / 20.0, &mut best));
+            alpha[l] = best.1;
         }
     }
-}
-
-/// Gaussian elimination with partial pivoting; a singular system's free unknowns are zero.
-fn gauss(mut m: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
-    let n = b.len();
-    for col in 0..n {
-        let piv = (col..n)
-            .max_by(|&i, &k| m[i][col].abs().total_cmp(&m[k][col].abs()))
-            .unwrap_or(col);
-        m.swap(col, piv);
-        b.swap(col, piv);
-        if m[col][col].abs() < 1e-300 {
-            continue;
-        }
-        for r in col + 1..n {
-            let f = m[r][col] / m[col][col];
-            let pivot = m[col].clone();
-            for (x, p) in m[r].iter_mut().zip(&pivot).skip(col) {
-                *x -= f * p;
-            }
-            b[r] -= f * b[col];
-        }
-    }
-    let mut x = vec![0.0; n];
-    for r in (0..n).rev() {
-        if m[r][r].abs() < 1e-300 {
-            continue;
-        }
-        let s: f64 = (r + 1..n).map(|k| m[r][k] * x[k]).sum();
-        x[r] = (b[r] - s) / m[r][r];
-    }
-    x
+    alpha
 }
 
 #[cfg(test)]
@@ -607,20 +530,18 @@ mod tests {
     #[test]
     fn pairs_of_one_albedo_give_the_lights_emittance() {
         // Pixels of albedo 0.5 (I = 0.5/π E) under E = E_nc + 3 E_l: the pairs recover α = 3,
-        // also with a quarter of them across an albedo edge (the L1 weights).
+        // also with a quarter of them across an albedo edge (L1), one of the two dark.
         let mut rows = Vec::new();
         for i in 0..40 {
             let (enc_p, enc_q) = (0.2 + 0.01 * i as f32, 0.25);
             let (el_p, el_q) = (0.1 * (i % 7) as f32, 0.05);
-            let edge = if i % 4 == 0 { 2.0 } else { 1.0 };
+            let edge = if i % 4 == 0 { 0.2 } else { 1.0 };
             let ip = 0.5 / std::f32::consts::PI * (enc_p + 3.0 * el_p) * edge;
             let iq = 0.5 / std::f32::consts::PI * (enc_q + 3.0 * el_q);
             rows.push(Row {
-                a: vec![[el_p / ip - el_q / iq; 3]],
-                z: vec![[el_p / ip - el_q / iq; 3]],
-                b: [enc_q / iq - enc_p / ip; 3],
-                inv_nc: [0.5 * (enc_p / ip + enc_q / iq); 3],
-                inv_l: vec![[0.5 * (el_p / ip + el_q / iq); 3]],
+                d: [(ip / iq).ln(); 3],
+                nc: [[enc_p; 3], [enc_q; 3]],
+                l: vec![[[el_p; 3], [el_q; 3]]],
             });
         }
         let a = solve(&rows, 0, 1);
