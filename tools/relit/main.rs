@@ -292,7 +292,7 @@ enum SceneCmd {
         #[arg(long, default_value_t = 0.02)]
         voxel: f32,
         /// Views the emittance is estimated from, spread over the capture (fewer: faster).
-        #[arg(long, default_value_t = 16)]
+        #[arg(long, default_value_t = 8)]
         views: usize,
     },
     /// Write the small procedural test room (CPU-shaded EXR views) in one of the formats.
@@ -501,7 +501,11 @@ fn find_lights(
         max_views: views,
         ..Default::default()
     };
-    let f = light_levels::find(&gpu, &s, &p)?;
+    let mut lines = progress::LogLines::new("find-lights");
+    let mut progress = |stage: &str, done: usize, total: usize, _rays: u64| {
+        lines.update(stage, done, total, &|_| String::new())
+    };
+    let f = light_levels::find(&gpu, &s, &p, &mut progress)?;
     println!(
         "clipped pixels: {} over {} views; voxel {:.3} m",
         f.clipped_pixels,

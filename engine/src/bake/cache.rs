@@ -60,6 +60,15 @@ impl BakeCache {
             h.bytes(&v.to_le_bytes());
         }
         h.file(&scene.mesh_path)?;
+        // Photos in integer formats have clipped pixels left out since then: their bakes from
+        // before are keyed apart (EXR scenes keep their key: nothing changed for them).
+        if scene
+            .views
+            .iter()
+            .any(|v| !crate::scene::image::is_exr(&v.image))
+        {
+            h.bytes(b"clipped pixels left out");
+        }
         for v in &scene.views {
             h.bytes(v.name.as_bytes());
             h.bytes(bytemuck::bytes_of(&v.camera.to_gpu(0.0, 0.0)));

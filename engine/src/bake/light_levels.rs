@@ -20,6 +20,7 @@ use std::sync::Arc;
 use glam::Vec3;
 
 use super::radiance_mesh;
+use super::run::Progress;
 use super::source_irradiance::{near_light, original_lights, SourceIrradiance};
 use super::source_irradiance::{PART_ALL, PART_DIRECT};
 use super::views::{GpuViews, ViewData};
@@ -53,7 +54,7 @@ impl Default for FindParams {
             min_clipped: 0.5,
             min_voxels: 3,
             samples: 64,
-            max_views: 16,
+            max_views: 8,
             seed: 11,
         }
     }
@@ -89,7 +90,12 @@ pub struct Finding {
 
 /// Finds the lights `scene`'s photos clip (none when nothing clipped). Lights the scene already
 /// declares (not `estimated`) count as known: their pixels and light are not searched again.
-pub fn find(gpu: &Arc<Gpu>, scene: &Scene, p: &FindParams) -> Result<Finding> {
+pub fn find(
+    gpu: &Arc<Gpu>,
+    scene: &Scene,
+    p: &FindParams,
+    progress: &mut dyn Progress,
+) -> Result<Finding> {
     let photos = scene.view_photos()?;
     let clipped_pixels = photos.iter().map(Photo::clipped_count).sum();
     let known: Vec<Light> = (scene.lights.iter())
@@ -122,7 +128,7 @@ pub fn find(gpu: &Arc<Gpu>, scene: &Scene, p: &FindParams) -> Result<Finding> {
             data: &data,
             views: &views,
         };
-        emittance(&s, &known, &mut lights, p)?;
+        emittance(&s, &known, &mut lights, p, progress)?;
     }
     Ok(Finding {
         lights,
@@ -367,6 +373,7 @@ fn emittance(
     known: &[Light],
     lights: &mut [FoundLight],
     p: &FindParams,
+    progress: &mut dyn Progress,
 ) -> Result<()> {
     let dark: Vec<Light> = (known.iter().cloned())
         .chain(lights.iter().map(|f| Light {
@@ -385,16 +392,19 @@ fn emittance(
     let nv = s.data.cameras.len();
     let step = nv.div_ceil(p.max_views.max(1));
     let mut rows = Vec::new();
-    for j in (0..nv).step_by(step) {
+    let chosen: Vec<usize> = (0..nv).step_by(step).collect();
+    for (k, &j) in chosen.iter().enumerate() {
+        progress.update("emittance", k, chosen.len(), 0);
         let r = (j as u32, p.samples, p.seed);
         let e_nc = nc.run_parts(s.mesh, &radiance, s.views, r, PART_ALL)?;
         // E_l sits inside a logarithm: more rays than E_nc keep its noise from biasing α.
-        let r_l = (r.0, 4 * r.1, r.2);
+        let r_l = (r.0, 2 * r.1, r.2);
         let e_l: Vec<Vec<[f32; 4]>> = (unit.iter())
             .map(|u| u.run_parts(s.mesh, &radiance, s.views, r_l, PART_DIRECT))
             .collect::<Result<_>>()?;
         pair_rows(s.data, j, &e_nc, &e_l, &dark_gpu, &mut rows);
     }
+    progress.update("emittance", chosen.len(), chosen.len(), 0);
     let per_channel: Vec<Vec<f64>> = (0..3).map(|c| solve(&rows, c, lights.len())).collect();
     for (l, f) in lights.iter_mut().enumerate() {
         f.light.radiance = [0, 1, 2].map(|c| per_channel[c][l] as f32);

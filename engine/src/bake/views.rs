@@ -38,6 +38,19 @@ impl ViewData {
         cameras: &[Camera],
         images: &[RgbImage],
     ) -> Result<ViewData> {
+        ViewData::build_with(gpu, mesh, cameras, |j, img| {
+            img.extend(images[j].pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]))
+        })
+    }
+
+    /// `build` with view `j`'s image appended by `image(j, img)` as RGBA (w = 1): the frame
+    /// hands over its RGBA layers without another copy of every view.
+    pub fn build_with(
+        gpu: &Arc<Gpu>,
+        mesh: &RayScene,
+        cameras: &[Camera],
+        mut image: impl FnMut(usize, &mut Vec<[f32; 4]>),
+    ) -> Result<ViewData> {
         let (width, height) = (cameras[0].width, cameras[0].height);
         if let Some(c) = cameras
             .iter()
@@ -58,15 +71,23 @@ impl ViewData {
             img: vec![],
             tri: vec![],
         };
-        for (c, im) in cameras.iter().zip(images) {
+        for (j, c) in cameras.iter().enumerate() {
             let g = pass.render(mesh, c, NEAR, FAR)?.download()?;
             d.pos.extend(g.pos_depth);
             d.nrm.extend(g.normal);
             d.tri.extend(g.tri);
-            d.img
-                .extend(im.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]));
+            image(j, &mut d.img);
         }
         Ok(d)
+    }
+
+    /// Frees the per-pixel host copies once they are on the device (a capture of 300 views
+    /// at 512×384 holds 3 GB of them); the cameras stay. CPU references need them kept.
+    pub fn drop_pixels(&mut self) {
+        for v in [&mut self.pos, &mut self.nrm, &mut self.img] {
+            *v = Vec::new();
+        }
+        self.tri = Vec::new();
     }
 
     pub fn pixels(&self) -> usize {

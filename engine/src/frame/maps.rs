@@ -129,13 +129,33 @@ impl ViewMaps {
 }
 
 impl ViewMaps {
+    /// `upload`, each type's host layers freed as soon as the device has them.
+    fn upload_owned(gpu: &Arc<Gpu>, mut m: HostMaps, format: MapFormat) -> Result<ViewMaps> {
+        let (w, h) = (m.width, m.height);
+        if m.eadd.is_empty() {
+            m.eadd = vec![vec![[0f32; 4]; (w * h) as usize]];
+        }
+        let one = |name: &str, layers: &mut Vec<Vec<[f32; 4]>>| {
+            let image = upload_layers(gpu, name, w, h, layers, format);
+            *layers = Vec::new();
+            image
+        };
+        Ok(ViewMaps {
+            img: one("maps: I", &mut m.img)?,
+            msrc: one("maps: M_src", &mut m.msrc)?,
+            esrc: one("maps: E_src", &mut m.esrc)?,
+            eadd: one("maps: E_add", &mut m.eadd)?,
+            format,
+        })
+    }
+
     /// The maps of a baked scene in `format`; BC6H layers come from the cache's `.bc6h` copies
     /// when they are all there (no re-encoding; the images, not in the cache, are encoded here).
     pub fn upload_cached(
         gpu: &Arc<Gpu>,
         scene: &crate::scene::Scene,
         params: &crate::bake::BakeParams,
-        host: &HostMaps,
+        host: HostMaps,
         format: MapFormat,
     ) -> Result<ViewMaps> {
         use crate::bake::BakeCache;
@@ -160,7 +180,7 @@ impl ViewMaps {
         }
         let (Some(msrc), Some(esrc), Some(eadd), MapFormat::Bc6h) = (msrc, esrc, eadd, format)
         else {
-            return ViewMaps::upload(gpu, host, format);
+            return ViewMaps::upload_owned(gpu, host, format);
         };
         let (w, h) = (host.width, host.height);
         Ok(ViewMaps {

@@ -229,7 +229,8 @@ pub struct FrameScene {
 }
 
 impl FrameScene {
-    /// From host data (tests, tools): `mesh` is the proxy the maps were baked on.
+    /// From host data (tests, tools): `mesh` is the proxy the maps were baked on. The views'
+    /// per-pixel host copies stay (the CPU references read them).
     pub fn from_parts(
         gpu: &Arc<Gpu>,
         mesh: &crate::scene::Mesh,
@@ -238,36 +239,30 @@ impl FrameScene {
         lights: &[Light],
         format: MapFormat,
     ) -> Result<FrameScene> {
-        FrameScene::build(
-            gpu,
-            mesh,
-            cameras,
-            host,
-            lights,
-            ViewMaps::upload(gpu, host, format)?,
-        )
+        let maps = |h: HostMaps| ViewMaps::upload(gpu, &h, format);
+        FrameScene::build(gpu, mesh, cameras, host.clone(), lights, true, maps)
     }
 
+    /// The views from `host`'s images first, then `maps(host)`: so that a loader can read the
+    /// lighting maps only once the views' host copies are gone (`keep_pixels` false).
     fn build(
         gpu: &Arc<Gpu>,
         mesh: &crate::scene::Mesh,
         cameras: &[Camera],
-        host: &HostMaps,
+        host: HostMaps,
         lights: &[Light],
-        maps: ViewMaps,
+        keep_pixels: bool,
+        maps: impl FnOnce(HostMaps) -> Result<ViewMaps>,
     ) -> Result<FrameScene> {
         let rs = RayScene::new(gpu, &mesh.positions, &mesh.triangles)?;
-        let images: Vec<crate::scene::RgbImage> = host
-            .img
-            .iter()
-            .map(|l| crate::scene::RgbImage {
-                width: host.width,
-                height: host.height,
-                pixels: l.iter().map(|p| [p[0], p[1], p[2]]).collect(),
-            })
-            .collect();
-        let data = ViewData::build(gpu, &rs, cameras, &images)?;
+        let mut data = ViewData::build_with(gpu, &rs, cameras, |j, img| {
+            img.extend(host.img[j].iter().map(|p| [p[0], p[1], p[2], 1.0]))
+        })?;
         let views = GpuViews::upload(gpu, &data)?;
+        if !keep_pixels {
+            data.drop_pixels();
+        }
+        let maps = maps(host)?;
         let emitters: Vec<GpuLight> = lights.iter().map(GpuLight::new).collect();
         // Vulkan has no empty buffers: one zero light when there is none (never read).
         let mut stored = emitters.clone();
@@ -301,18 +296,26 @@ impl FrameScene {
         params: &BakeParams,
         format: MapFormat,
     ) -> Result<FrameScene> {
-        let host = load_host_maps(scene, params)?;
         let mesh = bakerun::bake_mesh(scene, params);
         let cams: Vec<Camera> = scene.views.iter().map(|v| v.camera.clone()).collect();
-        let maps = ViewMaps::upload_cached(gpu, scene, params, &host, format)?;
         let added: Vec<Light> = scene
             .lights
             .iter()
             .filter(|l| !l.original)
             .cloned()
             .collect();
-        let mut fs = FrameScene::build(gpu, &mesh, &cams, &host, &added, maps)?;
-        fs.unbaked = host.unbaked.clone();
+        // The images, the views from them, and only then the lighting maps, each type freed
+        // once on the device: at the paper's scale (300 views at 512×384) these are GBs.
+        let mut host = HostMaps::default();
+        load_view_images(scene, &mut host)?;
+        let mut unbaked = Vec::new();
+        let maps = |mut h: HostMaps| {
+            load_lighting_maps(scene, params, &mut h)?;
+            unbaked = h.unbaked.clone();
+            ViewMaps::upload_cached(gpu, scene, params, h, format)
+        };
+        let mut fs = FrameScene::build(gpu, &mesh, &cams, host, &added, false, maps)?;
+        fs.unbaked = unbaked;
         let cache = BakeCache::of(scene, params)?;
         fs.albedo = Some(cache.read_albedo(mesh.positions.len())?);
         Ok(fs)
@@ -346,9 +349,28 @@ impl FrameScene {
 
 /// Reads a scene's images and its complete bake cache into host maps.
 pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
+    let mut m = HostMaps::default();
+    load_view_images(scene, &mut m)?;
+    load_lighting_maps(scene, params, &mut m)?;
+    Ok(m)
+}
+
+/// The views' photos into `m.img` (RGBA, w = 1), and the maps' size.
+fn load_view_images(scene: &Scene, m: &mut HostMaps) -> Result<()> {
+    for img in scene.view_images()? {
+        m.width = img.width;
+        m.height = img.height;
+        m.img
+            .push(img.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect());
+    }
+    Ok(())
+}
+
+/// M_src, E_src and every added light's E_add from the bake cache into `m` (size from
+/// `load_view_images`); added lights without baked maps get zero layers and are listed.
+fn load_lighting_maps(scene: &Scene, params: &BakeParams, m: &mut HostMaps) -> Result<()> {
     let cache = BakeCache::of(scene, params)?;
     let lights: Vec<_> = scene.lights.iter().filter(|l| !l.original).collect();
-    let mut m = HostMaps::default();
     let load = |path: &Path| -> Result<Vec<[f32; 4]>> {
         if !path.exists() {
             return Err(Error::input(
@@ -361,11 +383,7 @@ pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
         }
         BakeCache::load_map(path)
     };
-    for (v, img) in scene.views.iter().zip(scene.view_images()?) {
-        m.width = img.width;
-        m.height = img.height;
-        m.img
-            .push(img.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect());
+    for v in &scene.views {
         m.msrc.push(load(&cache.msrc(&v.name))?);
         m.esrc.push(load(&cache.esrc(&v.name))?);
     }
@@ -384,7 +402,7 @@ pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
             m.eadd.push(load(f)?);
         }
     }
-    Ok(m)
+    Ok(())
 }
 
 /// The mode commands render in when the user names neither a mode nor weights: the one that
