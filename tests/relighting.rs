@@ -100,18 +100,25 @@ fn ratio_renders(dir: &Path, preset: &str, condition: &str) -> Vec<f32> {
         .collect()
 }
 
-#[test]
-fn relighting_is_unbiased_on_a_room_written_by_hand() {
-    // tests/scenes/hand_room: a 4 × 3 × 2.5 m room of boxes written by hand (not by scenegen),
-    // a glossy floor and table top, a ceiling panel that 8 of the 16 views look up at, a small
-    // lamp; the proxy is the true geometry. Mitsuba renders its photos and truth here.
+/// A copy of tests/scenes/hand_room in a temp dir `name`, its photos and truth rendered by
+/// Mitsuba (128 spp).
+fn hand_room(name: &str) -> std::path::PathBuf {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/hand_room");
-    let dir = common::tempdir("hand-room");
+    let dir = common::tempdir(name);
     for e in std::fs::read_dir(&src).unwrap() {
         let e = e.unwrap();
         std::fs::copy(e.path(), dir.join(e.file_name())).unwrap();
     }
     common::render_ground_truth(&dir, &["--spp", "128"]);
+    dir
+}
+
+#[test]
+fn relighting_is_unbiased_on_a_room_written_by_hand() {
+    // tests/scenes/hand_room: a 4 × 3 × 2.5 m room of boxes written by hand (not by scenegen),
+    // a glossy floor and table top, a ceiling panel that 8 of the 16 views look up at, a small
+    // lamp; the proxy is the true geometry. Mitsuba renders its photos and truth here.
+    let dir = hand_room("hand-room");
     let scene = Scene::load(&dir).unwrap();
     let cov = relit_engine::scene::light_coverage(&scene);
     assert!(cov.iter().all(|c| !c.too_few()), "{:?}", cov[0].summary());
@@ -232,13 +239,7 @@ fn as_jpeg_capture_without_original_lights(dir: &Path, exposure: f32) {
 fn clipped_lights_are_found_in_jpeg_photos_and_the_bake_stays_unbiased() {
     // Appendix A: hand_room's photos as JPEGs in which the ceiling panel (radiance 10) clips,
     // its declaration removed; `scene find-lights` must place it and estimate its power.
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/hand_room");
-    let dir = common::tempdir("clipped-lights");
-    for e in std::fs::read_dir(&src).unwrap() {
-        let e = e.unwrap();
-        std::fs::copy(e.path(), dir.join(e.file_name())).unwrap();
-    }
-    common::render_ground_truth(&dir, &["--spp", "128"]);
+    let dir = hand_room("clipped-lights");
     let truth = Scene::load(&dir).unwrap();
     let panel = truth.lights.iter().find(|l| l.original).unwrap().clone();
     as_jpeg_capture_without_original_lights(&dir, 1.0);
