@@ -7,7 +7,7 @@ use std::sync::Arc;
 use glam::{Vec2, Vec3};
 
 use crate::error::{Error, Result};
-use crate::gpu::{vk, Bind, Buffer, Gpu, RayScene};
+use crate::gpu::{vk, Bind, Buffer, Gpu, MemoryLocation, RayScene};
 use crate::raster::GbufferPass;
 use crate::scene::{Camera, GpuCamera, RgbImage};
 
@@ -51,16 +51,7 @@ impl ViewData {
         cameras: &[Camera],
         mut image: impl FnMut(usize, &mut Vec<[f32; 4]>),
     ) -> Result<ViewData> {
-        let (width, height) = (cameras[0].width, cameras[0].height);
-        if let Some(c) = cameras
-            .iter()
-            .find(|c| (c.width, c.height) != (width, height))
-        {
-            return Err(Error::Other(format!(
-                "the bake needs all views at one resolution: {}x{} and {}x{}",
-                width, height, c.width, c.height
-            )));
-        }
+        let (width, height) = one_size(cameras)?;
         let pass = GbufferPass::new(gpu)?;
         let mut d = ViewData {
             cameras: cameras.to_vec(),
@@ -79,15 +70,6 @@ impl ViewData {
             image(j, &mut d.img);
         }
         Ok(d)
-    }
-
-    /// Frees the per-pixel host copies once they are on the device (a capture of 300 views
-    /// at 512×384 holds 3 GB of them); the cameras stay. CPU references need them kept.
-    pub fn drop_pixels(&mut self) {
-        for v in [&mut self.pos, &mut self.nrm, &mut self.img] {
-            *v = Vec::new();
-        }
-        self.tri = Vec::new();
     }
 
     pub fn pixels(&self) -> usize {
@@ -161,17 +143,74 @@ pub struct GpuViews {
     pub height: u32,
 }
 
+/// Read through device addresses only (views.glsl): no descriptor binds them, so
+/// maxStorageBufferRange does not bound the views' count or size.
+const BY_ADDRESS: vk::BufferUsageFlags = vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+
 impl GpuViews {
     pub fn upload(gpu: &Arc<Gpu>, d: &ViewData) -> Result<GpuViews> {
         let u = vk::BufferUsageFlags::STORAGE_BUFFER;
-        // Read through device addresses only (views.glsl): no descriptor binds them, so
-        // maxStorageBufferRange does not bound the views' count or size.
-        let ua = vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let maps = [
+            Buffer::from_slice(gpu, "view positions", BY_ADDRESS, &d.pos)?,
+            Buffer::from_slice(gpu, "view normals", BY_ADDRESS, &d.nrm)?,
+            Buffer::from_slice(gpu, "view images", BY_ADDRESS, &d.img)?,
+        ];
+        let tri = Buffer::from_slice(gpu, "view triangles", u, &d.tri)?;
+        GpuViews::assemble(gpu, d, maps, tri)
+    }
+
+    /// The views straight onto the device, one at a time: each view's G-buffer and its image
+    /// (`image(j)`, RGBA) go to their place in the device buffers, so no host copy of all views
+    /// is ever held (the frame; the bake and the CPU references keep [`ViewData`]'s). The
+    /// `ViewData` returned holds the cameras only.
+    pub fn build_streamed(
+        gpu: &Arc<Gpu>,
+        mesh: &RayScene,
+        cameras: &[Camera],
+        mut image: impl FnMut(usize) -> Vec<[f32; 4]>,
+    ) -> Result<(ViewData, GpuViews)> {
+        let (width, height) = one_size(cameras)?;
+        let (n, nv) = ((width * height) as u64, cameras.len() as u64);
+        let new = |name: &str, bytes: u64, usage| {
+            Buffer::new(gpu, name, nv * n * bytes, usage, MemoryLocation::GpuOnly)
+        };
+        let maps = [
+            new("view positions", 16, BY_ADDRESS)?,
+            new("view normals", 16, BY_ADDRESS)?,
+            new("view images", 16, BY_ADDRESS)?,
+        ];
+        let tri = new("view triangles", 4, vk::BufferUsageFlags::STORAGE_BUFFER)?;
+        let pass = GbufferPass::new(gpu)?;
+        for (j, c) in cameras.iter().enumerate() {
+            let g = pass.render(mesh, c, NEAR, FAR)?.download()?;
+            let at = |bytes: u64| j as u64 * n * bytes;
+            maps[0].upload_at(at(16), bytemuck::cast_slice(&g.pos_depth))?;
+            maps[1].upload_at(at(16), bytemuck::cast_slice(&g.normal))?;
+            maps[2].upload_at(at(16), bytemuck::cast_slice(&image(j)))?;
+            tri.upload_at(at(4), bytemuck::cast_slice(&g.tri))?;
+        }
+        let d = ViewData {
+            cameras: cameras.to_vec(),
+            width,
+            height,
+            pos: vec![],
+            nrm: vec![],
+            img: vec![],
+            tri: vec![],
+        };
+        let views = GpuViews::assemble(gpu, &d, maps, tri)?;
+        Ok((d, views))
+    }
+
+    /// The views' buffers with their cameras and the uniform block of their addresses.
+    fn assemble(
+        gpu: &Arc<Gpu>,
+        d: &ViewData,
+        [pos, nrm, img]: [Buffer; 3],
+        tri: Buffer,
+    ) -> Result<GpuViews> {
         let cams: Vec<GpuCamera> = d.cameras.iter().map(|c| c.to_gpu(NEAR, FAR)).collect();
-        let cameras = Buffer::from_slice(gpu, "view cameras", ua, &cams)?;
-        let pos = Buffer::from_slice(gpu, "view positions", ua, &d.pos)?;
-        let nrm = Buffer::from_slice(gpu, "view normals", ua, &d.nrm)?;
-        let img = Buffer::from_slice(gpu, "view images", ua, &d.img)?;
+        let cameras = Buffer::from_slice(gpu, "view cameras", BY_ADDRESS, &cams)?;
         let addresses: Vec<u64> = [&cameras, &pos, &nrm, &img]
             .iter()
             .map(|b| b.address)
@@ -187,7 +226,7 @@ impl GpuViews {
             pos,
             nrm,
             img,
-            tri: Buffer::from_slice(gpu, "view triangles", u, &d.tri)?,
+            tri,
             count: d.cameras.len() as u32,
             width: d.width,
             height: d.height,
@@ -197,6 +236,18 @@ impl GpuViews {
     /// The resource views.glsl declares (its `Views` block).
     pub fn bind(&self) -> (&'static str, Bind<'_>) {
         ("Views", Bind::Buffer(&self.addresses))
+    }
+}
+
+/// The views' one image size (the bake and the frame need all views at one resolution).
+fn one_size(cameras: &[Camera]) -> Result<(u32, u32)> {
+    let (width, height) = (cameras[0].width, cameras[0].height);
+    match (cameras.iter()).find(|c| (c.width, c.height) != (width, height)) {
+        Some(c) => Err(Error::Other(format!(
+            "the bake needs all views at one resolution: {}x{} and {}x{}",
+            width, height, c.width, c.height
+        ))),
+        None => Ok((width, height)),
     }
 }
 

@@ -35,6 +35,14 @@ pub struct HostMaps {
     pub unbaked: Vec<String>,
 }
 
+/// The maps the bake makes, one texture array each.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LightingMap {
+    Msrc,
+    Esrc,
+    Eadd,
+}
+
 pub struct ViewMaps {
     pub img: Image,
     pub msrc: Image,
@@ -129,33 +137,50 @@ impl ViewMaps {
 }
 
 impl ViewMaps {
-    /// `upload`, each type's host layers freed as soon as the device has them.
-    fn upload_owned(gpu: &Arc<Gpu>, mut m: HostMaps, format: MapFormat) -> Result<ViewMaps> {
+    /// `upload` one type at a time: `load(kind, m)` fills that type's layers of `m` just before
+    /// they go to the device, and they are freed right after (at the paper's scale each type
+    /// is a GB on the host).
+    fn upload_streamed(
+        gpu: &Arc<Gpu>,
+        mut m: HostMaps,
+        load: &mut dyn FnMut(LightingMap, &mut HostMaps) -> Result<()>,
+        format: MapFormat,
+    ) -> Result<ViewMaps> {
         let (w, h) = (m.width, m.height);
-        if m.eadd.is_empty() {
-            m.eadd = vec![vec![[0f32; 4]; (w * h) as usize]];
-        }
         let one = |name: &str, layers: &mut Vec<Vec<[f32; 4]>>| {
             let image = upload_layers(gpu, name, w, h, layers, format);
             *layers = Vec::new();
             image
         };
+        let img = one("maps: I", &mut m.img)?;
+        load(LightingMap::Msrc, &mut m)?;
+        let msrc = one("maps: M_src", &mut m.msrc)?;
+        load(LightingMap::Esrc, &mut m)?;
+        let esrc = one("maps: E_src", &mut m.esrc)?;
+        load(LightingMap::Eadd, &mut m)?;
+        if m.eadd.is_empty() {
+            m.eadd = vec![vec![[0f32; 4]; (w * h) as usize]];
+        }
+        let eadd = one("maps: E_add", &mut m.eadd)?;
         Ok(ViewMaps {
-            img: one("maps: I", &mut m.img)?,
-            msrc: one("maps: M_src", &mut m.msrc)?,
-            esrc: one("maps: E_src", &mut m.esrc)?,
-            eadd: one("maps: E_add", &mut m.eadd)?,
+            img,
+            msrc,
+            esrc,
+            eadd,
             format,
         })
     }
 
     /// The maps of a baked scene in `format`; BC6H layers come from the cache's `.bc6h` copies
-    /// when they are all there (no re-encoding; the images, not in the cache, are encoded here).
+    /// when they are all there (no re-encoding; the images, not in the cache, are encoded here),
+    /// else from `load` (one type at a time, [`ViewMaps::upload_streamed`]). `host` holds the
+    /// images.
     pub fn upload_cached(
         gpu: &Arc<Gpu>,
         scene: &crate::scene::Scene,
         params: &crate::bake::BakeParams,
         host: HostMaps,
+        load: &mut dyn FnMut(LightingMap, &mut HostMaps) -> Result<()>,
         format: MapFormat,
     ) -> Result<ViewMaps> {
         use crate::bake::BakeCache;
@@ -180,7 +205,7 @@ impl ViewMaps {
         }
         let (Some(msrc), Some(esrc), Some(eadd), MapFormat::Bc6h) = (msrc, esrc, eadd, format)
         else {
-            return ViewMaps::upload_owned(gpu, host, format);
+            return ViewMaps::upload_streamed(gpu, host, load, format);
         };
         let (w, h) = (host.width, host.height);
         Ok(ViewMaps {

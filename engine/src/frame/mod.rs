@@ -16,7 +16,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-pub use maps::{HostMaps, MapFormat, ViewMaps};
+pub use maps::{HostMaps, LightingMap, MapFormat, ViewMaps};
 
 use crate::bake::{run as bakerun, BakeCache, BakeParams, GpuLight, GpuViews, ViewData};
 use crate::error::{Error, Result};
@@ -244,7 +244,8 @@ impl FrameScene {
     }
 
     /// The views from `host`'s images first, then `maps(host)`: so that a loader can read the
-    /// lighting maps only once the views' host copies are gone (`keep_pixels` false).
+    /// lighting maps only once the views are on the device. Without `keep_pixels` the views go
+    /// to the device one at a time and no host copy of them is kept.
     fn build(
         gpu: &Arc<Gpu>,
         mesh: &crate::scene::Mesh,
@@ -255,13 +256,14 @@ impl FrameScene {
         maps: impl FnOnce(HostMaps) -> Result<ViewMaps>,
     ) -> Result<FrameScene> {
         let rs = RayScene::new(gpu, &mesh.positions, &mesh.triangles)?;
-        let mut data = ViewData::build_with(gpu, &rs, cameras, |j, img| {
-            img.extend(host.img[j].iter().map(|p| [p[0], p[1], p[2], 1.0]))
-        })?;
-        let views = GpuViews::upload(gpu, &data)?;
-        if !keep_pixels {
-            data.drop_pixels();
-        }
+        let rgba = |j: usize| host.img[j].iter().map(|p| [p[0], p[1], p[2], 1.0]);
+        let (data, views) = if keep_pixels {
+            let data = ViewData::build_with(gpu, &rs, cameras, |j, img| img.extend(rgba(j)))?;
+            let views = GpuViews::upload(gpu, &data)?;
+            (data, views)
+        } else {
+            GpuViews::build_streamed(gpu, &rs, cameras, |j| rgba(j).collect())?
+        };
         let maps = maps(host)?;
         let emitters: Vec<GpuLight> = lights.iter().map(GpuLight::new).collect();
         // Vulkan has no empty buffers: one zero light when there is none (never read).
@@ -309,11 +311,12 @@ impl FrameScene {
         let mut host = HostMaps::default();
         load_view_images(scene, &mut host)?;
         let mut unbaked = Vec::new();
-        let maps = |mut h: HostMaps| {
-            load_lighting_maps(scene, params, &mut h)?;
-            unbaked = h.unbaked.clone();
-            ViewMaps::upload_cached(gpu, scene, params, h, format)
+        let mut load = |kind, m: &mut HostMaps| {
+            load_lighting_map(scene, params, kind, m)?;
+            unbaked.clone_from(&m.unbaked);
+            Ok(())
         };
+        let maps = |h: HostMaps| ViewMaps::upload_cached(gpu, scene, params, h, &mut load, format);
         let mut fs = FrameScene::build(gpu, &mesh, &cams, host, &added, false, maps)?;
         fs.unbaked = unbaked;
         let cache = BakeCache::of(scene, params)?;
@@ -351,7 +354,9 @@ impl FrameScene {
 pub fn load_host_maps(scene: &Scene, params: &BakeParams) -> Result<HostMaps> {
     let mut m = HostMaps::default();
     load_view_images(scene, &mut m)?;
-    load_lighting_maps(scene, params, &mut m)?;
+    for kind in [LightingMap::Msrc, LightingMap::Esrc, LightingMap::Eadd] {
+        load_lighting_map(scene, params, kind, &mut m)?;
+    }
     Ok(m)
 }
 
@@ -366,11 +371,16 @@ fn load_view_images(scene: &Scene, m: &mut HostMaps) -> Result<()> {
     Ok(())
 }
 
-/// M_src, E_src and every added light's E_add from the bake cache into `m` (size from
-/// `load_view_images`); added lights without baked maps get zero layers and are listed.
-fn load_lighting_maps(scene: &Scene, params: &BakeParams, m: &mut HostMaps) -> Result<()> {
+/// One type of the bake's maps (M_src, E_src, or every added light's E_add) from the bake
+/// cache into `m` (size from `load_view_images`); added lights without baked maps get zero
+/// layers and are listed in `m.unbaked`.
+fn load_lighting_map(
+    scene: &Scene,
+    params: &BakeParams,
+    kind: LightingMap,
+    m: &mut HostMaps,
+) -> Result<()> {
     let cache = BakeCache::of(scene, params)?;
-    let lights: Vec<_> = scene.lights.iter().filter(|l| !l.original).collect();
     let load = |path: &Path| -> Result<Vec<[f32; 4]>> {
         if !path.exists() {
             return Err(Error::input(
@@ -383,23 +393,32 @@ fn load_lighting_maps(scene: &Scene, params: &BakeParams, m: &mut HostMaps) -> R
         }
         BakeCache::load_map(path)
     };
-    for v in &scene.views {
-        m.msrc.push(load(&cache.msrc(&v.name))?);
-        m.esrc.push(load(&cache.esrc(&v.name))?);
-    }
-    let npix = (m.width * m.height) as usize;
-    for l in &lights {
-        let files: Vec<_> = (scene.views.iter())
-            .map(|v| cache.eadd(&v.name, l, params))
-            .collect();
-        // A light no map was baked for has not been used yet: zero layers, refused if lit.
-        if files.iter().all(|f| !f.exists()) {
-            m.unbaked.push(l.name.clone());
-            m.eadd.extend(files.iter().map(|_| vec![[0.0; 4]; npix]));
-            continue;
+    let views = || scene.views.iter();
+    match kind {
+        LightingMap::Msrc => {
+            m.msrc = views()
+                .map(|v| load(&cache.msrc(&v.name)))
+                .collect::<Result<_>>()?
         }
-        for f in &files {
-            m.eadd.push(load(f)?);
+        LightingMap::Esrc => {
+            m.esrc = views()
+                .map(|v| load(&cache.esrc(&v.name)))
+                .collect::<Result<_>>()?
+        }
+        LightingMap::Eadd => {
+            let npix = (m.width * m.height) as usize;
+            for l in scene.lights.iter().filter(|l| !l.original) {
+                let files: Vec<_> = views().map(|v| cache.eadd(&v.name, l, params)).collect();
+                // A light no map was baked for has not been used yet: zero layers, refused if lit.
+                if files.iter().all(|f| !f.exists()) {
+                    m.unbaked.push(l.name.clone());
+                    m.eadd.extend(files.iter().map(|_| vec![[0.0; 4]; npix]));
+                    continue;
+                }
+                for f in &files {
+                    m.eadd.push(load(f)?);
+                }
+            }
         }
     }
     Ok(())

@@ -252,9 +252,15 @@ impl Buffer {
     }
 
     pub fn upload(&self, bytes: &[u8]) -> Result<()> {
-        if bytes.len() as u64 > self.size {
+        self.upload_at(0, bytes)
+    }
+
+    /// Writes `bytes` at byte `offset` (a buffer filled piece by piece, without a host copy of
+    /// the whole).
+    pub fn upload_at(&self, offset: u64, bytes: &[u8]) -> Result<()> {
+        if offset + bytes.len() as u64 > self.size {
             return Err(Error::Other(format!(
-                "upload of {} bytes into a {}-byte buffer",
+                "upload of {} bytes at {offset} into a {}-byte buffer",
                 bytes.len(),
                 self.size
             )));
@@ -262,13 +268,17 @@ impl Buffer {
         if self.direct() {
             let a = self.alloc.as_ref().expect("allocation");
             let p = a.mapped_ptr().expect("mapped").as_ptr() as *mut u8;
-            unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), p, bytes.len()) };
+            unsafe {
+                std::ptr::copy_nonoverlapping(bytes.as_ptr(), p.add(offset as usize), bytes.len())
+            };
             return Ok(());
         }
         let staging = Staging::new(&self.gpu, bytes.len() as u64, MemoryLocation::CpuToGpu)?;
         staging.write(bytes);
         self.gpu.submit(|cmd| unsafe {
-            let region = [vk::BufferCopy::default().size(bytes.len() as u64)];
+            let region = [vk::BufferCopy::default()
+                .dst_offset(offset)
+                .size(bytes.len() as u64)];
             self.gpu
                 .device
                 .cmd_copy_buffer(cmd, staging.0.raw, self.raw, &region);
