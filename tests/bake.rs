@@ -1315,3 +1315,28 @@ fn bake_covers_the_lights_in_use_and_others_are_baked_when_first_lit() {
     assert!(err.contains("baking light(s) extra1"), "{err}");
     assert_eq!(entries().len(), 2, "{:?}", entries());
 }
+
+/// The frame streams each view to the device (`GpuViews::build_streamed`, no host copy of all
+/// views): its buffers must hold exactly what uploading the bake's `ViewData` gives.
+#[test]
+fn streamed_views_equal_the_uploaded_ones() {
+    let gpu = common::gpu();
+    let (t, rs) = tiny(&gpu);
+    let whole = GpuViews::upload(&gpu, &t.data).unwrap();
+    let n = t.data.pixels();
+    let (d, streamed) = GpuViews::build_streamed(&gpu, &rs, &t.data.cameras, |j| {
+        t.data.img[j * n..(j + 1) * n].to_vec()
+    })
+    .unwrap();
+    assert!(d.pos.is_empty() && d.cameras.len() == t.data.cameras.len());
+    for (a, b) in [
+        (&whole.pos, &streamed.pos),
+        (&whole.nrm, &streamed.nrm),
+        (&whole.img, &streamed.img),
+        (&whole.tri, &streamed.tri),
+        (&whole.cameras, &streamed.cameras),
+    ] {
+        assert_eq!(a.download().unwrap(), b.download().unwrap());
+    }
+    common::assert_no_validation_errors(&gpu);
+}

@@ -20,8 +20,6 @@ layout(set = 0, binding = 0) uniform accelerationStructureEXT tlas;
 #include "barycentric.glsl"
 layout(set = 0, binding = 5, scalar) readonly buffer Verts { vec3 verts[]; };
 layout(set = 0, binding = 6) readonly buffer Indices { uint indices[]; };
-// Per view and pixel: the proxy triangle + 1 (0: none), from the views' G-buffers.
-layout(set = 0, binding = 7) readonly buffer Tri { uint pixel_tri[]; };
 // The cache: indirect E_add per texel, and the texel at each triangle corner.
 layout(set = 0, binding = 8) readonly buffer Cache { vec4 cache[]; };
 layout(set = 0, binding = 9) readonly buffer Corners { uint corner_texel[]; };

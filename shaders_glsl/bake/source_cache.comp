@@ -22,8 +22,6 @@ layout(local_size_x = 64) in;
 layout(set = 0, binding = 9, scalar) readonly buffer Verts { vec3 verts[]; };
 layout(set = 0, binding = 10) readonly buffer Cache { vec4 cache[]; };
 layout(set = 0, binding = 11) readonly buffer Corners { uint corner_texel[]; };
-// Per view and pixel: the proxy triangle + 1 (0: none), from the views' G-buffers.
-layout(set = 0, binding = 12) readonly buffer Tri { uint pixel_tri[]; };
 
 void main() {
     uint p = gl_GlobalInvocationID.x;

@@ -1,7 +1,7 @@
 // The input views as the bake and frame passes read them: cameras, per-view G-buffers of the
 // proxy mesh (position + camera depth, normal) and colour images, all views at one resolution,
 // stored view-major. A shader that includes this declares one binding, VIEWS_BINDING: a uniform
-// block with the four buffers' device addresses (bake::GpuViews). The buffers are read through
+// block with the five buffers' device addresses (bake::GpuViews). The buffers are read through
 // buffer-device-address pointers because lavapipe (Mesa 25.0) compiles a storage-buffer load
 // whose offset is not a compile-time constant (a view index from a loop, a pixel from a
 // projection) into a loop over the lanes with a bounds check each, and a pointer load into one
@@ -13,13 +13,16 @@
 
 layout(buffer_reference, scalar, buffer_reference_align = 16) readonly buffer CameraRef { Camera v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 16) readonly buffer Vec4Ref { vec4 v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 4) readonly buffer UintRef { uint v[]; };
 layout(set = 0, binding = VIEWS_BINDING, scalar) uniform Views {
-    uvec2 cameras; uvec2 positions; uvec2 normals; uvec2 images;
+    uvec2 cameras; uvec2 positions; uvec2 normals; uvec2 images; uvec2 tris;
 } views_addr;
 #define cams (CameraRef(views_addr.cameras).v)
 #define gpos (Vec4Ref(views_addr.positions).v)
 #define gnrm (Vec4Ref(views_addr.normals).v)
 #define images (Vec4Ref(views_addr.images).v)
+// Per view and pixel: the proxy triangle + 1 (0: none), from the views' G-buffers.
+#define pixel_tri (UintRef(views_addr.tris).v)
 
 // DEPTH_EPS, the visibility test's tolerance: the point is seen by view j when its camera depth
 // agrees with view j's depth map within this fraction (MVS meshes are only this good).

@@ -72,7 +72,6 @@ impl AddedIrradiance {
             ("tlas", Bind::Accel(mesh.tlas.raw)),
             ("Verts", Bind::Buffer(&mesh.positions)),
             ("Indices", Bind::Buffer(&mesh.indices)),
-            ("Tri", Bind::Buffer(&views.tri)),
             ("Cache", Bind::Buffer(cache)),
             ("Corners", Bind::Buffer(&layout.corners)),
             ("Out", Bind::Buffer(out)),

@@ -150,7 +150,6 @@ impl SourceCache {
             ("Verts", Bind::Buffer(&mesh.positions)),
             ("Cache", Bind::Buffer(cache)),
             ("Corners", Bind::Buffer(&layout.corners)),
-            ("Tri", Bind::Buffer(&views.tri)),
         ];
         binds.extend([views.bind()]);
         self.pipeline.dispatch(

@@ -129,7 +129,7 @@ impl ViewData {
 pub use crate::constants::DEPTH_EPS;
 
 /// The views' buffers on the GPU. Shaders read them through device addresses (views.glsl), which
-/// one small uniform buffer, `addresses`, holds.
+/// one small uniform buffer, `addresses`, holds: no binding grows with the capture.
 pub struct GpuViews {
     pub addresses: Buffer,
     pub cameras: Buffer,
@@ -149,13 +149,12 @@ const BY_ADDRESS: vk::BufferUsageFlags = vk::BufferUsageFlags::SHADER_DEVICE_ADD
 
 impl GpuViews {
     pub fn upload(gpu: &Arc<Gpu>, d: &ViewData) -> Result<GpuViews> {
-        let u = vk::BufferUsageFlags::STORAGE_BUFFER;
         let maps = [
             Buffer::from_slice(gpu, "view positions", BY_ADDRESS, &d.pos)?,
             Buffer::from_slice(gpu, "view normals", BY_ADDRESS, &d.nrm)?,
             Buffer::from_slice(gpu, "view images", BY_ADDRESS, &d.img)?,
         ];
-        let tri = Buffer::from_slice(gpu, "view triangles", u, &d.tri)?;
+        let tri = Buffer::from_slice(gpu, "view triangles", BY_ADDRESS, &d.tri)?;
         GpuViews::assemble(gpu, d, maps, tri)
     }
 
@@ -179,7 +178,7 @@ impl GpuViews {
             new("view normals", 16, BY_ADDRESS)?,
             new("view images", 16, BY_ADDRESS)?,
         ];
-        let tri = new("view triangles", 4, vk::BufferUsageFlags::STORAGE_BUFFER)?;
+        let tri = new("view triangles", 4, BY_ADDRESS)?;
         let pass = GbufferPass::new(gpu)?;
         for (j, c) in cameras.iter().enumerate() {
             let g = pass.render(mesh, c, NEAR, FAR)?.download()?;
@@ -211,7 +210,7 @@ impl GpuViews {
     ) -> Result<GpuViews> {
         let cams: Vec<GpuCamera> = d.cameras.iter().map(|c| c.to_gpu(NEAR, FAR)).collect();
         let cameras = Buffer::from_slice(gpu, "view cameras", BY_ADDRESS, &cams)?;
-        let addresses: Vec<u64> = [&cameras, &pos, &nrm, &img]
+        let addresses: Vec<u64> = [&cameras, &pos, &nrm, &img, &tri]
             .iter()
             .map(|b| b.address)
             .collect();
