@@ -51,17 +51,8 @@ impl ViewData {
         cameras: &[Camera],
         mut image: impl FnMut(usize, &mut Vec<[f32; 4]>),
     ) -> Result<ViewData> {
-        let (width, height) = one_size(cameras)?;
         let pass = GbufferPass::new(gpu)?;
-        let mut d = ViewData {
-            cameras: cameras.to_vec(),
-            width,
-            height,
-            pos: vec![],
-            nrm: vec![],
-            img: vec![],
-            tri: vec![],
-        };
+        let mut d = ViewData::cameras_only(cameras)?;
         for (j, c) in cameras.iter().enumerate() {
             let g = pass.render(mesh, c, NEAR, FAR)?.download()?;
             d.pos.extend(g.pos_depth);
@@ -70,6 +61,20 @@ impl ViewData {
             image(j, &mut d.img);
         }
         Ok(d)
+    }
+
+    /// The views' cameras and their one image size, no pixels yet.
+    fn cameras_only(cameras: &[Camera]) -> Result<ViewData> {
+        let (width, height) = one_size(cameras)?;
+        Ok(ViewData {
+            cameras: cameras.to_vec(),
+            width,
+            height,
+            pos: vec![],
+            nrm: vec![],
+            img: vec![],
+            tri: vec![],
+        })
     }
 
     pub fn pixels(&self) -> usize {
@@ -188,15 +193,7 @@ impl GpuViews {
             maps[2].upload_at(at(16), bytemuck::cast_slice(&image(j)))?;
             tri.upload_at(at(4), bytemuck::cast_slice(&g.tri))?;
         }
-        let d = ViewData {
-            cameras: cameras.to_vec(),
-            width,
-            height,
-            pos: vec![],
-            nrm: vec![],
-            img: vec![],
-            tri: vec![],
-        };
+        let d = ViewData::cameras_only(cameras)?;
         let views = GpuViews::assemble(gpu, &d, maps, tri)?;
         Ok((d, views))
     }
