@@ -102,12 +102,10 @@ pub fn find(
         .filter(|l| !l.estimated)
         .cloned()
         .collect();
-    let geom = scene.mesh.clone();
+    let geom = &scene.mesh;
     let mesh = RayScene::new(gpu, &geom.positions, &geom.triangles)?;
-    let images: Vec<_> = photos.iter().map(|p| p.image.clone()).collect();
     let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
-    let mut data = ViewData::build(gpu, &mesh, &cams, &images)?;
-    data.mark_clipped(&photos);
+    let data = ViewData::from_photos(gpu, &mesh, &cams, &photos)?;
     let voxel = voxel_size(&data, p.voxel);
     let known_gpu = original_lights(&known);
     let regions: Vec<Vec<usize>> = regions(&data, voxel, p)
@@ -123,7 +121,7 @@ pub fn find(
         let views = GpuViews::upload(gpu, &data)?;
         let s = Setting {
             gpu,
-            geom: &geom,
+            geom,
             mesh: &mesh,
             data: &data,
             views: &views,

@@ -202,12 +202,10 @@ struct Setup {
 impl Setup {
     fn new(gpu: &Arc<Gpu>, scene: &Scene, p: &BakeParams) -> Result<Setup> {
         let photos = scene.view_photos()?;
-        let images: Vec<_> = photos.iter().map(|p| p.image.clone()).collect();
         let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
         let geom = bake_mesh(scene, p);
         let mesh = RayScene::new(gpu, &geom.positions, &geom.triangles)?;
-        let mut data = ViewData::build(gpu, &mesh, &cams, &images)?;
-        data.mark_clipped(&photos);
+        let data = ViewData::from_photos(gpu, &mesh, &cams, &photos)?;
         let views = GpuViews::upload(gpu, &data)?;
         Ok(Setup {
             geom,

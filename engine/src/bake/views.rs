@@ -43,6 +43,26 @@ impl ViewData {
         })
     }
 
+    /// `build` from the scene's photos (no copy of their images), their clipped pixels marked.
+    pub fn from_photos(
+        gpu: &Arc<Gpu>,
+        mesh: &RayScene,
+        cameras: &[Camera],
+        photos: &[crate::scene::Photo],
+    ) -> Result<ViewData> {
+        let mut d = ViewData::build_with(gpu, mesh, cameras, |j, img| {
+            img.extend(
+                photos[j]
+                    .image
+                    .pixels
+                    .iter()
+                    .map(|p| [p[0], p[1], p[2], 1.0]),
+            )
+        })?;
+        d.mark_clipped(photos);
+        Ok(d)
+    }
+
     /// `build` with view `j`'s image appended by `image(j, img)` as RGBA (w = 1): the frame
     /// hands over its RGBA layers without another copy of every view.
     pub fn build_with(
