@@ -618,6 +618,25 @@ fn photos_mark_their_clipped_pixels() {
     img16.save(&png16).unwrap();
     assert_eq!(load_photo(&png16).unwrap().clipped, [true, false]);
 
+    // TIFF is linear (a RAW converter's output): no sRGB decoding, clipped at the top code.
+    let tif = dir.join("raw.tif");
+    let img16 = image::ImageBuffer::<image::Rgb<u16>, _>::from_fn(3, 1, |x, _| {
+        image::Rgb([[65535, 30000, 65534][x as usize]; 3])
+    });
+    img16.save(&tif).unwrap();
+    let t = load_photo(&tif).unwrap();
+    assert_eq!(t.clipped, [true, false, false]);
+    assert!(
+        (t.image.pixels[1][0] - 30000.0 / 65535.0).abs() < 1e-6,
+        "linear"
+    );
+    let tif8 = dir.join("eight.tif");
+    image::RgbImage::from_pixel(2, 2, image::Rgb([90; 3]))
+        .save(&tif8)
+        .unwrap();
+    let e = load_photo(&tif8).unwrap_err().to_string();
+    assert!(e.contains("eight.tif") && e.contains("8-bit TIFF"), "{e}");
+
     let grey = dir.join("c.png");
     image::RgbImage::from_pixel(3, 2, image::Rgb([90; 3]))
         .save(&grey)

@@ -28,8 +28,8 @@ pub use error::{Error, Result};
 /// Every pass's push-constant struct as Rust lays it out; tests/gpu.rs holds each against the
 /// block its shaders declare (reflected member offsets and size).
 pub fn push_layouts() -> Vec<gpu::PushLayout> {
-    vec![
-        crate::net::GEMM_PUSH_LAYOUT,
+    #[cfg_attr(not(feature = "test-support"), allow(unused_mut))]
+    let mut all = vec![
         crate::net::CONV_PUSH_LAYOUT,
         crate::net::LANES_PUSH_LAYOUT,
         crate::net::UP_PUSH_LAYOUT,
@@ -50,5 +50,8 @@ pub fn push_layouts() -> Vec<gpu::PushLayout> {
         crate::bake::albedo_mesh::PUSH_LAYOUT,
         crate::gpu::gather::PUSH_LAYOUT,
         crate::view::compose::PUSH_LAYOUT,
-    ]
+    ];
+    #[cfg(feature = "test-support")]
+    all.push(crate::net::GEMM_PUSH_LAYOUT);
+    all
 }

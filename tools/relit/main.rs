@@ -98,6 +98,10 @@ enum Cmd {
         /// --lighting and --out.
         #[arg(long, conflicts_with_all = ["camera", "lighting", "out"])]
         batch: Option<PathBuf>,
+        /// Leave the input view that --camera names out of every frame pass (leave-one-out:
+        /// render a photo from the others and compare; in a batch, "leave_out": true).
+        #[arg(long, conflicts_with = "batch")]
+        leave_out: bool,
         #[command(flatten)]
         frame: render::FrameArgs,
     },
@@ -879,12 +883,20 @@ fn main() {
             res,
             out,
             batch,
+            leave_out,
             frame,
         } => match (batch, camera, out) {
             (Some(b), _, _) => render::render_batch(&opts, scene, b, *res, frame),
-            (None, Some(c), Some(o)) => {
-                render::render(&opts, scene, c, *res, lighting.as_deref(), o, frame)
-            }
+            (None, Some(c), Some(o)) => render::render(
+                &opts,
+                scene,
+                c,
+                *res,
+                lighting.as_deref(),
+                o,
+                *leave_out,
+                frame,
+            ),
             _ => Err(anyhow::anyhow!(
                 "relit render: --camera and --out, or --batch"
             )),

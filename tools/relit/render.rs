@@ -228,10 +228,29 @@ struct BatchJob {
     lighting: Option<String>,
     mode: Option<Mode>,
     out: PathBuf,
+    leave_out: bool,
+}
+
+/// The input view a `--camera` spec names (an index or a view's name), if any.
+fn view_index(scene: &Scene, camera: &str) -> Option<usize> {
+    match camera.parse::<usize>() {
+        Ok(i) => Some(i),
+        Err(_) => scene.views.iter().position(|v| v.name == camera),
+    }
+}
+
+/// The view to leave out of every pass when `leave_out`: the input view the camera names.
+fn left_out(scene: &Scene, camera: &str, leave_out: bool) -> Result<Option<u32>> {
+    match (leave_out, view_index(scene, camera)) {
+        (false, _) => Ok(None),
+        (true, Some(i)) => Ok(Some(i as u32)),
+        (true, None) => bail!("--leave-out: camera {camera} is not an input view"),
+    }
 }
 
 /// Reads a `--batch` file: a JSON array of {"camera", "lighting" (optional), "mode" (optional:
-/// network, ratio or ulr), "out"}.
+/// network, ratio, ratio-filled or ulr), "leave_out" (optional: true leaves the camera's own
+/// input view out), "out"}.
 fn batch_jobs(path: &Path) -> Result<Vec<BatchJob>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
@@ -268,11 +287,20 @@ fn batch_jobs(path: &Path) -> Result<Vec<BatchJob>> {
                 path.display()
             ),
         };
+        let leave_out = match v.get("leave_out") {
+            None | Some(serde_json::Value::Null) => false,
+            Some(serde_json::Value::Bool(b)) => *b,
+            Some(_) => bail!(
+                "{}: render {i}: \"leave_out\" must be true or false",
+                path.display()
+            ),
+        };
         jobs.push(BatchJob {
             camera: need("camera")?,
             lighting: field(i, v, "lighting")?,
             mode,
             out: PathBuf::from(need("out")?),
+            leave_out,
         });
     }
     Ok(jobs)
@@ -291,9 +319,11 @@ pub fn render_batch(
     let jobs = batch_jobs(jobs)?;
     let mut cams = Vec::with_capacity(jobs.len());
     let mut lights = Vec::with_capacity(jobs.len());
+    let mut excluded = Vec::with_capacity(jobs.len());
     let mut used: Vec<String> = Vec::new();
     for j in &jobs {
         cams.push(resolve_camera(&scene, &j.camera, res)?);
+        excluded.push(left_out(&scene, &j.camera, j.leave_out)?);
         let l = lighting(&scene, j.lighting.as_deref())?;
         used.extend(
             lit(&scene, &l)
@@ -310,7 +340,8 @@ pub fn render_batch(
         .any(|j| j.mode.is_none_or(|m| m.needs_network()));
     let (mut r, mode) = open_renderer(&gpu, &scene, a, size, Some(used), need_net)?;
     r.display_only = true;
-    for ((j, cam), light) in jobs.iter().zip(&cams).zip(&lights) {
+    for (((j, cam), light), ex) in jobs.iter().zip(&cams).zip(&lights).zip(excluded) {
+        r.exclude = ex;
         r.render(cam, light, j.mode.unwrap_or(mode), a.exposure, None)?;
         write_frame(&r, &j.out)?;
     }
@@ -326,15 +357,18 @@ pub fn render(
     res: Option<(u32, u32)>,
     preset: Option<&str>,
     out: &Path,
+    leave_out: bool,
     a: &FrameArgs,
 ) -> Result<()> {
     let scene = Scene::load(dir)?;
     let cam = resolve_camera(&scene, camera, res)?;
+    let exclude = left_out(&scene, camera, leave_out)?;
     let light = lighting(&scene, preset)?;
     let gpu = crate::open_gpu(opts)?;
     let used = Some(lit(&scene, &light));
     let (mut r, mode) = open_renderer(&gpu, &scene, a, Some((cam.width, cam.height)), used, false)?;
     r.display_only = true;
+    r.exclude = exclude;
     r.render(&cam, &light, mode, a.exposure, None)?;
     write_frame(&r, out)?;
     println!("{}: {}x{} ({mode:?})", out.display(), cam.width, cam.height);
@@ -574,10 +608,7 @@ pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> 
     )?;
     // An input view's own image must not be among its inputs (the network would learn to copy
     // it): leave it out of every pass unless --keep-view.
-    let view_index = match camera.parse::<usize>() {
-        Ok(i) => Some(i),
-        Err(_) => scene.views.iter().position(|v| v.name == camera),
-    };
+    let view_index = view_index(&scene, camera);
     let cam_name = view_index.map_or(camera.to_string(), |i| scene.views[i].name.clone());
     if !keep_view {
         r.exclude = view_index.map(|i| i as u32);

@@ -3,15 +3,18 @@
 //! epilogue), chosen at run time from the device's capabilities.
 
 mod conv;
+#[cfg(feature = "test-support")]
 mod gemm;
 mod model;
 pub(crate) use conv::{CONV_PUSH_LAYOUT, LANES_PUSH_LAYOUT, UP_LANES_PUSH_LAYOUT, UP_PUSH_LAYOUT};
+#[cfg(feature = "test-support")]
 pub(crate) use gemm::PUSH_LAYOUT as GEMM_PUSH_LAYOUT;
 
 pub use conv::{
     conv_reference, pack_lanes, pack_weights, upsample_add_reference, Conv, Epilogue, LanesConv,
     NetKernels, Storage, Tensor, OCB,
 };
+#[cfg(feature = "test-support")]
 pub use gemm::Gemm;
 pub use model::{
     NetBase, NetBuffers, NetConfig, Network, Params, RandomParams, SafetensorsParams, SHIPPED,

@@ -249,13 +249,15 @@ pub fn load_photo(path: &Path) -> Result<Photo> {
 }
 
 /// PNG, JPEG and the other formats of the `image` crate: sRGB decoded to linear; in integer
-/// formats, pixels with a channel at the top code marked clipped.
+/// formats, pixels with a channel at the top code marked clipped. TIFF is linear (what a RAW
+/// converter writes: `dcraw -4 -T -w`), 16-bit or float, never 8-bit.
 fn decode_integer(path: &Path) -> Result<Photo> {
     let data = super::files::read(path, super::files::FileKind::Image)?;
     check_jpeg_end(path, &data)?;
     let mut reader = image::ImageReader::new(std::io::Cursor::new(data))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
+    let linear = reader.format() == Some(image::ImageFormat::Tiff);
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_IMAGE_DIM);
     limits.max_image_height = Some(MAX_IMAGE_DIM);
@@ -263,20 +265,32 @@ fn decode_integer(path: &Path) -> Result<Photo> {
     let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader.decode()))
         .map_err(|_| Error::input(path, "the image decoder failed on this file (corrupt)"))?
         .map_err(|e| Error::input(path, format!("cannot decode image: {e}")))?;
-    let integer = !matches!(
-        decoded.color(),
-        image::ColorType::Rgb32F | image::ColorType::Rgba32F
-    );
-    let rgb = decoded.into_rgb32f();
-    let top = CLIP_FRACTION - 0.5 / 65535.0;
-    let mut clipped: Vec<bool> = Vec::new();
-    if integer && rgb.pixels().any(|p| p.0.iter().any(|&c| c >= top)) {
-        clipped = rgb
-            .pixels()
-            .map(|p| p.0.iter().any(|&c| c >= top))
-            .collect();
+    use image::ColorType as C;
+    let (integer, eight_bit) = match decoded.color() {
+        C::Rgb32F | C::Rgba32F => (false, false),
+        C::L8 | C::La8 | C::Rgb8 | C::Rgba8 => (true, true),
+        _ => (true, false),
+    };
+    if linear && eight_bit {
+        return Err(Error::input(
+            path,
+            "8-bit TIFF: relit reads TIFF as linear radiance, which 8 bits cannot hold; \
+             write 16-bit linear TIFF (dcraw -4 -T -w RAW) or an sRGB JPEG/PNG",
+        ));
     }
-    let pixels = rgb.pixels().map(|p| p.0.map(srgb_to_linear)).collect();
+    let rgb = decoded.into_rgb32f();
+    // 8-bit sRGB clips below the top code (JPEG rings under a saturated region); 16-bit at it.
+    let top = match eight_bit {
+        true => CLIP_FRACTION - 0.5 / 65535.0,
+        false => 1.0 - 0.5 / 65535.0,
+    };
+    let clips = |p: &image::Rgb<f32>| p.0.iter().any(|&c| c >= top);
+    let mut clipped: Vec<bool> = Vec::new();
+    if integer && rgb.pixels().any(clips) {
+        clipped = rgb.pixels().map(clips).collect();
+    }
+    let decode = |c: f32| if linear { c } else { srgb_to_linear(c) };
+    let pixels = rgb.pixels().map(|p| p.0.map(decode)).collect();
     Ok(Photo {
         image: RgbImage {
             width: rgb.width(),

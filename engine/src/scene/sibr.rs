@@ -74,7 +74,8 @@ fn image_list(dir: &Path) -> Result<Vec<ImageEntry>> {
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
             p.extension().and_then(|e| e.to_str()).is_some_and(|e| {
-                ["exr", "png", "jpg", "jpeg"].contains(&e.to_ascii_lowercase().as_str())
+                ["exr", "png", "jpg", "jpeg", "tif", "tiff"]
+                    .contains(&e.to_ascii_lowercase().as_str())
             })
         })
         .collect();

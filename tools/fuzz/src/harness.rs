@@ -137,15 +137,15 @@ pub fn mesh_ply(data: &[u8]) {
     mesh(data, "m.ply")
 }
 
-/// EXR, PNG and JPEG: the first byte picks the extension the loader dispatches on.
+/// EXR, PNG, JPEG and TIFF: the first byte picks the extension the loader dispatches on.
 pub fn image(data: &[u8]) {
     let Some((&kind, rest)) = data.split_first() else {
         return;
     };
-    let ext = ["exr", "png", "jpg"][kind as usize % 3];
+    let ext = ["exr", "png", "jpg", "tif"][kind as usize % 4];
     let p = put(&scratch(), &format!("i.{ext}"), rest);
     let _ = relit_engine::scene::image::image_size(&p);
-    let _ = relit_engine::scene::image::load_rgb(&p);
+    let _ = relit_engine::scene::image::load_photo(&p);
 }
 
 /// Camera JSON (`--camera FILE`, first byte even) or a camera path (`fly --path`, odd); a path

@@ -1,0 +1,315 @@
+#!/usr/bin/env python3
+"""A folder of photos → a Relit scene (COLMAP model, undistorted photos, proxy mesh).
+
+Runs on CPUs only: structure from motion with pycolmap (SIFT, exhaustive matching, incremental
+mapping), undistortion to pinhole cameras, then a proxy surface by screened Poisson (PyMeshLab)
+over the sparse points, trimmed to where points are. Dense MVS needs CUDA in COLMAP, so the mesh
+is coarse: the paper's RealityCapture meshes are finer, and the bake inherits what this one lacks.
+
+    python tools/capture/capture.py PHOTOS OUT [--size 512] [--scale M]
+
+PHOTOS holds JPEG or PNG files (or an images/ folder of them). OUT gets images/, sparse/0/
+(binary COLMAP, PINHOLE cameras) and mesh.ply, in metres with +Y up (the mean of the cameras' up
+vectors). Without --scale, the median distance from a camera to the points it sees is set to
+ROOM_DEPTH_M; give --scale (metres per SfM unit) when a real distance is known. Work files go to
+OUT.work/ and are reused when a stage's output is already there. Then:
+    relit scene check OUT; relit scene find-lights OUT; relit bake OUT
+"""
+import argparse
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+PHOTO_SUFFIXES = {".jpg", ".jpeg", ".png"}
+# Without a known distance: a camera in a room sees its points ~2 m away on average.
+ROOM_DEPTH_M = 2.0
+# Points kept for the surface: seen by at least this many photos, reprojecting within this.
+MIN_TRACK = 3
+MAX_REPROJ_PX = 2.0
+
+
+class CaptureError(Exception):
+    pass
+
+
+def say(stage, msg, t0=None):
+    took = f" ({time.time() - t0:.0f} s)" if t0 is not None else ""
+    print(f"capture: {stage}: {msg}{took}", flush=True)
+
+
+def photos_in(folder: Path):
+    if not folder.is_dir():
+        raise CaptureError(f"{folder}: not a directory of photos")
+    src = folder / "images" if (folder / "images").is_dir() else folder
+    files = sorted(p for p in src.iterdir() if p.suffix.lower() in PHOTO_SUFFIXES and p.is_file())
+    if len(files) < 3:
+        raise CaptureError(f"{src}: {len(files)} JPEG/PNG photos; structure from motion needs at least 3")
+    return files
+
+
+def resized_copies(files, dst: Path, long_side: int):
+    """The photos at `long_side` pixels on their longer side (EXIF kept: COLMAP reads the focal
+    length from it), as the input of SfM."""
+    from PIL import Image, ImageOps  # noqa: F401 (ImageOps: transpose by EXIF orientation)
+
+    dst.mkdir(parents=True, exist_ok=True)
+    for f in files:
+        out = dst / (f.stem + ".jpg")
+        if out.exists():
+            continue
+        try:
+            im = Image.open(f)
+            im.load()
+        except Exception as e:
+            raise CaptureError(f"{f}: not a readable image ({e})")
+        exif = im.info.get("exif", b"")
+        s = long_side / max(im.size)
+        if s < 1:
+            im = im.resize((round(im.size[0] * s), round(im.size[1] * s)), Image.LANCZOS)
+        tmp = out.with_suffix(".tmp.jpg")
+        im.convert("RGB").save(tmp, quality=95, exif=exif)
+        os.replace(tmp, out)
+
+
+def sfm(images: Path, work: Path):
+    """SIFT, exhaustive matching and incremental mapping; the largest model."""
+    import pycolmap
+
+    db, sparse = work / "database.db", work / "sparse"
+    if (sparse / "0" / "images.bin").exists():
+        return pycolmap.Reconstruction(str(sparse / "0"))
+    for p in [db, sparse]:
+        shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+    t0 = time.time()
+    reader = pycolmap.ImageReaderOptions()
+    reader.camera_model = "OPENCV"
+    pycolmap.extract_features(db, images, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader)
+    say("sfm", "features extracted", t0)
+    pycolmap.match_exhaustive(db)
+    say("sfm", "photos matched", t0)
+    maps = pycolmap.incremental_mapping(db, images, sparse)
+    if not maps:
+        raise CaptureError(f"{images}: structure from motion registered no photos (too little overlap or texture)")
+    best = max(maps.values(), key=lambda r: r.num_reg_images())
+    # Keep the largest model as sparse/0 whatever number COLMAP gave it.
+    final = work / "sparse-best"
+    shutil.rmtree(final, ignore_errors=True)
+    final.mkdir()
+    best.write(final)
+    shutil.rmtree(sparse)
+    (sparse).mkdir()
+    os.replace(final, sparse / "0")
+    say("sfm", f"{best.num_reg_images()} photos registered, {best.num_points3D()} points", t0)
+    return best
+
+
+def val(x):
+    """A pycolmap attribute that some versions make a method and others a property."""
+    return x() if callable(x) else x
+
+
+def posed(rec):
+    return [img for img in rec.images.values() if val(img.has_pose)]
+
+
+def to_world(rec, scale):
+    """Metres and +Y up: a similarity taking the cameras' mean up vector to +Y and the median
+    camera-to-point depth to ROOM_DEPTH_M unless `scale` (metres per SfM unit) is given."""
+    import pycolmap
+
+    ups, depths = [], []
+    for img in posed(rec):
+        w2c = val(img.cam_from_world).matrix()
+        r = w2c[:, :3]
+        ups.append(-r[1])  # COLMAP camera y points down; its world up is −row 1 of R
+        pts = [rec.points3D[p.point3D_id].xyz for p in img.points2D if p.has_point3D()]
+        if pts:
+            z = (np.asarray(pts) @ r.T + w2c[:, 3])[:, 2]
+            depths.append(np.median(z))
+    up = np.mean(ups, axis=0)
+    up /= np.linalg.norm(up)
+    if scale is None:
+        scale = ROOM_DEPTH_M / float(np.median(depths))
+    # Rotation taking `up` to +Y (Rodrigues about up × Y).
+    y = np.array([0.0, 1.0, 0.0])
+    v, c = np.cross(up, y), float(up @ y)
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    rot = np.eye(3) + vx + vx @ vx / (1 + c) if c > -0.999 else np.diag([1.0, -1.0, -1.0])
+    centre = np.median([img.projection_center() for img in posed(rec)], axis=0)
+    t = -scale * rot @ centre
+    sim = pycolmap.Sim3d(scale, pycolmap.Rotation3d(rot), t)
+    rec.transform(sim)
+    return scale
+
+
+def undistort(rec_dir: Path, images: Path, out: Path, long_side: int):
+    import pycolmap
+
+    t0 = time.time()
+    opts = pycolmap.UndistortCameraOptions()
+    opts.max_image_size = long_side
+    tmp = out.parent / (out.name + ".undist")
+    shutil.rmtree(tmp, ignore_errors=True)
+    pycolmap.undistort_images(tmp, rec_dir, images, undistort_options=opts)
+    say("undistort", f"pinhole photos at {long_side} px", t0)
+    return tmp
+
+
+def good_points(rec):
+    """Points seen by MIN_TRACK photos within MAX_REPROJ_PX, with the mean direction towards the
+    cameras that saw them (which way the surface faces)."""
+    xyz, towards = [], []
+    centres = {img.image_id: img.projection_center() for img in posed(rec)}
+    for p in rec.points3D.values():
+        ids = [e.image_id for e in p.track.elements]
+        if len(ids) < MIN_TRACK or p.error > MAX_REPROJ_PX:
+            continue
+        d = np.mean([centres[i] - p.xyz for i in ids], axis=0)
+        xyz.append(p.xyz)
+        towards.append(d / (np.linalg.norm(d) + 1e-12))
+    if len(xyz) < 100:
+        raise CaptureError(f"structure from motion kept {len(xyz)} well-seen points; a surface needs at least 100")
+    return np.asarray(xyz), np.asarray(towards)
+
+
+def knn(points, k, chunk=2048):
+    """Indices of each point's k nearest points (itself first) and the distances."""
+    idx, dist = [], []
+    sq = (points**2).sum(1)
+    for s in range(0, len(points), chunk):
+        q = points[s : s + chunk]
+        d2 = sq[None, :] - 2 * q @ points.T + (q**2).sum(1)[:, None]
+        part = np.argpartition(d2, k, axis=1)[:, :k]
+        order = np.take_along_axis(d2, part, 1).argsort(1)
+        part = np.take_along_axis(part, order, 1)
+        idx.append(part)
+        dist.append(np.sqrt(np.maximum(np.take_along_axis(d2, part, 1), 0)))
+    return np.concatenate(idx), np.concatenate(dist)
+
+
+def normals(points, towards, k=16):
+    """Normals by principal axes of each point's neighbourhood, turned to face its cameras."""
+    idx, _ = knn(points, k)
+    nb = points[idx] - points[idx].mean(1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", nb, nb)
+    _, vecs = np.linalg.eigh(cov)
+    n = vecs[:, :, 0]
+    return n * np.sign((n * towards).sum(1, keepdims=True) + 1e-12)
+
+
+def surface(points, nrm, depth, out: Path):
+    """Screened Poisson over the oriented points, trimmed where no point is near."""
+    import pymeshlab
+
+    t0 = time.time()
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=points, v_normals_matrix=nrm))
+    ms.generate_surface_reconstruction_screened_poisson(depth=depth, preclean=True)
+    m = ms.current_mesh()
+    v, f = m.vertex_matrix(), m.face_matrix()
+    _, spacing = knn(points, 2)
+    reach = 8.0 * float(np.median(spacing[:, 1]))
+    near = np.zeros(len(v), bool)
+    for s in range(0, len(v), 4096):
+        q = v[s : s + 4096]
+        d2 = (q**2).sum(1)[:, None] - 2 * q @ points.T + (points**2).sum(1)[None, :]
+        near[s : s + 4096] = d2.min(1) <= reach * reach
+    keep = near[f].all(1)
+    if keep.sum() < 100:
+        raise CaptureError(f"the Poisson surface keeps {keep.sum()} faces near the points; try --poisson-depth {depth - 1}")
+    write_ply(out, v, f[keep])
+    say("mesh", f"{keep.sum()} triangles within {reach:.3f} m of a point", t0)
+
+
+def write_ply(path: Path, v, f):
+    """Binary little-endian PLY, written to a temporary file and renamed."""
+    used = np.unique(f)
+    remap = np.full(len(v), -1, np.int64)
+    remap[used] = np.arange(len(used))
+    v, f = v[used].astype("<f4"), remap[f].astype("<i4")
+    head = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(v)}\nproperty float x\nproperty float y\nproperty float z\n"
+        f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    faces = np.zeros(len(f), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    faces["n"], faces["i"] = 3, f
+    tmp = path.with_suffix(".tmp.ply")
+    with open(tmp, "wb") as fh:
+        fh.write(head.encode())
+        fh.write(v.tobytes())
+        fh.write(faces.tobytes())
+    os.replace(tmp, path)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("photos", type=Path)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--size", type=int, default=512, help="longer side of the scene's photos (px)")
+    ap.add_argument("--sfm-size", type=int, default=1024, help="longer side the SfM sees (px)")
+    ap.add_argument("--scale", type=float, help="metres per SfM unit (default: median depth 2 m)")
+    ap.add_argument("--poisson-depth", type=int, default=8)
+    a = ap.parse_args(argv)
+    try:
+        run(a)
+    except CaptureError as e:
+        print(f"capture: error: {e}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def run(a):
+    import pycolmap
+
+    if a.out.exists() and any(a.out.iterdir()):
+        raise CaptureError(f"{a.out}: exists and is not empty; give a new folder")
+    files = photos_in(a.photos)
+    work = a.out.parent / (a.out.name + ".work")
+    t0 = time.time()
+    resized_copies(files, work / "images", a.sfm_size)
+    say("photos", f"{len(files)} photos at {a.sfm_size} px", t0)
+    rec = sfm(work / "images", work)
+    if rec.num_reg_images() < 3:
+        raise CaptureError(f"{a.photos}: only {rec.num_reg_images()} photos registered")
+    scale = to_world(rec, a.scale)
+    world = work / "world"
+    shutil.rmtree(world, ignore_errors=True)
+    world.mkdir()
+    rec.write(world)
+    say("world", f"{scale:.4g} m per SfM unit, +Y up")
+    und = undistort(world, work / "images", a.out, a.size)
+    pts, towards = good_points(pycolmap.Reconstruction(str(und / "sparse")))
+    stage = a.out.parent / (a.out.name + ".tmp")
+    shutil.rmtree(stage, ignore_errors=True)
+    (stage / "sparse").mkdir(parents=True)
+    os.replace(und / "images", stage / "images")
+    os.replace(und / "sparse", stage / "sparse" / "0")
+    surface(pts, normals(pts, towards), a.poisson_depth, stage / "mesh.ply")
+    (stage / "capture.json").write_text(
+        json.dumps(
+            {
+                "photos": str(a.photos),
+                "registered": rec.num_reg_images(),
+                "of": len(files),
+                "metres_per_sfm_unit": scale,
+                "scale_given": a.scale is not None,
+                "size": a.size,
+            },
+            indent=1,
+        )
+    )
+    shutil.rmtree(und, ignore_errors=True)
+    if a.out.exists():
+        a.out.rmdir()
+    os.replace(stage, a.out)
+    say("done", f"{a.out}: next `relit scene check {a.out}`", t0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
