@@ -26,6 +26,8 @@ from pathlib import Path
 import numpy as np
 
 PHOTO_SUFFIXES = {".jpg", ".jpeg", ".png"}
+# What the tool runs on (measured with pycolmap 4.2.1, pymeshlab 2025.7).
+REQUIREMENTS = ["pycolmap", "pymeshlab", "numpy", "pillow"]
 # Without a known distance: a camera in a room sees its points ~2 m away on average.
 ROOM_DEPTH_M = 2.0
 # Points kept for the surface: seen by at least this many photos, reprojecting within this.
@@ -265,11 +267,15 @@ def main(argv=None):
 
 
 def run(a):
-    import pycolmap
-
     if a.out.exists() and any(a.out.iterdir()):
         raise CaptureError(f"{a.out}: exists and is not empty; give a new folder")
     files = photos_in(a.photos)
+    try:
+        import pycolmap
+        import pymeshlab  # noqa: F401
+        from PIL import Image  # noqa: F401
+    except ImportError as e:
+        raise CaptureError(f"{e.name} is not installed: pip install {' '.join(REQUIREMENTS)}")
     work = a.out.parent / (a.out.name + ".work")
     t0 = time.time()
     resized_copies(files, work / "images", a.sfm_size)

@@ -1,0 +1,64 @@
+"""The capture tool's own geometry (no pycolmap needed): neighbours, normals, the trimmed mesh
+file relit reads, and its errors. Run: RELIT=target/debug/relit python -m unittest tools/capture/test_capture.py
+"""
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import capture as C  # noqa: E402
+
+
+class CaptureGeometry(unittest.TestCase):
+    def test_knn_matches_brute_force(self):
+        rng = np.random.default_rng(1)
+        p = rng.random((300, 3))
+        idx, dist = C.knn(p, 5, chunk=64)
+        d = np.linalg.norm(p[:, None] - p[None], axis=-1)
+        want = np.argsort(d, 1, kind="stable")[:, :5]
+        np.testing.assert_array_equal(np.sort(idx, 1), np.sort(want, 1))
+        self.assertTrue((idx[:, 0] == np.arange(300)).all(), "each point is its own nearest")
+        np.testing.assert_allclose(dist, np.take_along_axis(d, idx, 1), atol=1e-6)
+
+    def test_normals_face_the_cameras(self):
+        rng = np.random.default_rng(2)
+        p = np.c_[rng.random((500, 2)), 0.001 * rng.standard_normal(500)]
+        down = np.tile([0.0, 0.0, -1.0], (500, 1))
+        n = C.normals(p, down)
+        self.assertGreater(float((n @ [0, 0, -1]).min()), 0.99)
+
+    def test_written_mesh_is_read_by_relit(self):
+        relit = os.environ.get("RELIT")
+        if not relit:
+            self.skipTest("RELIT (the relit binary) not set")
+        v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [5, 5, 5]], float)
+        f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+        with tempfile.TemporaryDirectory() as d:
+            path = Path(d) / "tet.ply"
+            C.write_ply(path, v, f)
+            self.assertFalse((Path(d) / "tet.tmp.ply").exists())
+            out = subprocess.run([relit, "bench", "rays", "--mesh", str(path), "--rays", "256",
+                                  "--repeats", "1"], capture_output=True, text=True)
+            self.assertEqual(out.returncode, 0, out.stderr)
+            # The unused vertex (5, 5, 5) is dropped: 4 vertices, 4 triangles.
+            head = path.read_bytes().split(b"end_header\n")[0].decode()
+            self.assertIn("element vertex 4", head)
+            self.assertIn("element face 4", head)
+
+    def test_too_few_photos_is_an_error_naming_the_folder(self):
+        with tempfile.TemporaryDirectory() as d:
+            (Path(d) / "a.jpg").write_bytes(b"")
+            with self.assertRaises(C.CaptureError) as e:
+                C.photos_in(Path(d))
+            self.assertIn(d, str(e.exception))
+            self.assertIn("at least 3", str(e.exception))
+            self.assertEqual(C.main([d, str(Path(d) / "out")]), 1)
+
+
+if __name__ == "__main__":
+    unittest.main()
