@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::Subcommand;
 use glam::Vec3;
-use relit_engine::gpu::{vk, Buffer, GpuOptions, MemoryLocation, RayScene, Timer};
+use relit_engine::gpu::{vk, Buffer, GpuOptions, Graph, MemoryLocation, RayScene, Timer};
 use relit_engine::scene::{synth, Mesh};
 use relit_engine::trace::{Hit, Ray, RayCaster};
 
@@ -505,7 +505,7 @@ fn bake_bench(
         let ns = p.irradiance_samples;
         t_s += timed(&gpu, "e_src", |cmd| match src_cache {
             true => spass.record(
-                cmd,
+                &mut Graph::new(&gpu, cmd, None),
                 &si,
                 &mesh,
                 &radiance,
@@ -516,7 +516,10 @@ fn bake_bench(
                 1,
                 &out,
             ),
-            false => si.record(cmd, &mesh, &radiance, &views, v, ns, 1, &out),
+            false => {
+                let g = &mut Graph::new(&gpu, cmd, None);
+                si.record(g, &mesh, &radiance, &views, v, ns, 1, &out)
+            }
         })?;
         t_m += timed(&gpu, "m_src", |cmd| mi.record(cmd, &mesh, &views, v, &out))?;
         if let Some(l) = &light {

@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use super::views::{GpuViews, ViewData};
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Graph, MemoryLocation, Pipeline};
 
 /// Filter parameters: window radius (px; 0 = off), spatial sigma (px), tangent-plane distance
 /// sigma (relative to depth), and the exponent on the normals' cosine.
@@ -73,15 +73,15 @@ impl Denoise {
     /// Records the filtering of `input` (this view's map) into `out`. With `base`, `input` is
     /// the noisy part of the map `base`: out = base − input + filtered input.
     #[allow(clippy::too_many_arguments)]
-    pub fn record(
-        &self,
-        cmd: vk::CommandBuffer,
-        views: &GpuViews,
+    pub fn record<'a>(
+        &'a self,
+        g: &mut Graph<'a, '_>,
+        views: &'a GpuViews,
         view: u32,
         p: DenoiseParams,
-        input: &Buffer,
-        base: Option<&Buffer>,
-        out: &Buffer,
+        input: &'a Buffer,
+        base: Option<&'a Buffer>,
+        out: &'a Buffer,
     ) -> Result<()> {
         let push = Push {
             view,
@@ -99,12 +99,8 @@ impl Denoise {
             ("Out", Bind::Buffer(out)),
             ("Base", Bind::Buffer(base.unwrap_or(input))),
         ];
-        self.pipeline.dispatch(
-            cmd,
-            &binds,
-            bytes_of(&push),
-            (views.width * views.height, 1, 1),
-        )
+        let threads = (views.width * views.height, 1, 1);
+        g.pass("denoise", &self.pipeline, binds, bytes_of(&push), threads)
     }
 
     pub fn run(
@@ -128,7 +124,10 @@ impl Denoise {
             MemoryLocation::GpuOnly,
         )?;
         let mut res = Ok(());
-        gpu.submit(|cmd| res = self.record(cmd, views, view, p, &ib, bb.as_ref(), &ob))?;
+        gpu.submit(|cmd| {
+            let mut g = Graph::new(gpu, cmd, None);
+            res = self.record(&mut g, views, view, p, &ib, bb.as_ref(), &ob)
+        })?;
         res?;
         let mut v: Vec<[f32; 4]> = ob.download_vec()?;
         v.truncate(input.len());

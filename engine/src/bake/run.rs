@@ -18,7 +18,7 @@ use super::{
     ViewData,
 };
 use crate::error::{Error, Result};
-use crate::gpu::{vk, Buffer, Gpu, MemoryLocation, RayScene};
+use crate::gpu::{vk, Buffer, Gpu, Graph, MemoryLocation, RayScene};
 use crate::scene::image::load_rgb;
 use crate::scene::{Light, Scene};
 
@@ -367,29 +367,22 @@ impl Stages<'_> {
                 p.irradiance_samples,
                 (&self.s.mesh, &self.s.views),
             );
-            let estimate = |cmd, out: &Buffer| match &source_cache {
-                Some(c) => sc.record(
-                    cmd,
-                    &si,
-                    mesh,
-                    &radiance,
-                    views,
-                    (&c.0, &c.1),
-                    v,
-                    n,
-                    p.seed,
-                    out,
-                ),
-                None => si.record(cmd, mesh, &radiance, views, v, n, p.seed, out),
-            };
+            // E_src, then (with the denoiser) filtered into the stage's output: the graph puts
+            // the barrier between them.
+            let denoise = p.denoise.radius > 0;
+            let target = if denoise { &noisy } else { &self.out };
             let mut res = Ok(());
             gpu.submit(|cmd| {
-                res = match p.denoise.radius > 0 {
-                    true => estimate(cmd, &noisy).and_then(|_| {
-                        crate::gpu::full_barrier(gpu, cmd);
-                        dn.record(cmd, views, v, p.denoise, &noisy, None, &self.out)
-                    }),
-                    false => estimate(cmd, &self.out),
+                let mut g = Graph::new(gpu, cmd, None);
+                res = match &source_cache {
+                    Some(c) => {
+                        let cache = (&c.0, &c.1);
+                        sc.record(&mut g, &si, mesh, &radiance, views, cache, v, n, p.seed, target)
+                    }
+                    None => si.record(&mut g, mesh, &radiance, views, v, n, p.seed, target),
+                };
+                if denoise && res.is_ok() {
+                    res = dn.record(&mut g, views, v, p.denoise, &noisy, None, &self.out);
                 }
             })?;
             res?;

@@ -20,7 +20,7 @@ use super::source_irradiance::{
 use super::surface_cache::{barycentrics, CacheLayout, GpuCacheLayout};
 use super::views::{facing_normal, GpuViews};
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Graph, Pipeline, RayScene};
 
 /// Texels per dispatch: a few seconds each on lavapipe, so progress shows as it goes.
 const CHUNK: u32 = 8192;
@@ -116,18 +116,18 @@ impl SourceCache {
     /// an estimate): `samples` shadow rays per pixel over the declared lights of `si`, plus the
     /// indirect part from `cache` (one vec4 per texel of `layout`).
     #[allow(clippy::too_many_arguments)]
-    pub fn record(
-        &self,
-        cmd: vk::CommandBuffer,
-        si: &SourceIrradiance,
-        mesh: &RayScene,
-        radiance: &Buffer,
-        views: &GpuViews,
-        (layout, cache): (&GpuCacheLayout, &Buffer),
+    pub fn record<'a>(
+        &'a self,
+        g: &mut Graph<'a, '_>,
+        si: &'a SourceIrradiance,
+        mesh: &'a RayScene,
+        radiance: &'a Buffer,
+        views: &'a GpuViews,
+        (layout, cache): (&'a GpuCacheLayout, &'a Buffer),
         view: u32,
         samples: u32,
         seed: u32,
-        out: &Buffer,
+        out: &'a Buffer,
     ) -> Result<()> {
         let (lights, nlights) = si.lights();
         let push = Push {
@@ -152,12 +152,8 @@ impl SourceCache {
             ("Corners", Bind::Buffer(&layout.corners)),
         ];
         binds.extend([views.bind()]);
-        self.pipeline.dispatch(
-            cmd,
-            &binds,
-            bytes_of(&push),
-            (views.width * views.height, 1, 1),
-        )
+        let threads = (views.width * views.height, 1, 1);
+        g.pass("source irradiance", &self.pipeline, binds, bytes_of(&push), threads)
     }
 
     /// Runs one view and reads the result back.
@@ -173,10 +169,10 @@ impl SourceCache {
         samples: u32,
         seed: u32,
     ) -> Result<Vec<[f32; 4]>> {
-        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
-            self.record(
-                cmd, si, mesh, radiance, views, cache, view, samples, seed, out,
-            )
+        let gpu = &self.pipeline.gpu;
+        super::views::run_pixels(gpu, views, |cmd, out| {
+            let g = &mut Graph::new(gpu, cmd, None);
+            self.record(g, si, mesh, radiance, views, cache, view, samples, seed, out)
         })
     }
 }

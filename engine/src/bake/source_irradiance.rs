@@ -11,7 +11,7 @@ use super::random::{cosine_dir, rand2};
 use super::views::{facing_normal, GpuViews, ViewData};
 use super::GpuLight;
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Graph, Pipeline, RayScene};
 use crate::scene::{Light, Mesh};
 
 /// Metres: a proxy hit this close to a declared light's plane, on a ray that crosses the
@@ -120,30 +120,30 @@ impl SourceIrradiance {
     /// Records E_src of `view` into `out` (one vec4 per pixel: rgb irradiance, w = rays used).
     /// `radiance`: the filled radiance mesh (`radiance_mesh`), for hits no view sees.
     #[allow(clippy::too_many_arguments)]
-    pub fn record(
-        &self,
-        cmd: vk::CommandBuffer,
-        mesh: &RayScene,
-        radiance: &Buffer,
-        views: &GpuViews,
+    pub fn record<'a>(
+        &'a self,
+        g: &mut Graph<'a, '_>,
+        mesh: &'a RayScene,
+        radiance: &'a Buffer,
+        views: &'a GpuViews,
         view: u32,
         samples: u32,
         seed: u32,
-        out: &Buffer,
+        out: &'a Buffer,
     ) -> Result<()> {
         let r = (view, samples, seed, PART_ALL);
-        self.record_parts(cmd, mesh, radiance, views, r, out)
+        self.record_parts(g, mesh, radiance, views, r, out)
     }
 
     /// `record` of the estimator's `parts` alone ([`PART_DIRECT`], [`PART_INDIRECT`]).
-    fn record_parts(
-        &self,
-        cmd: vk::CommandBuffer,
-        mesh: &RayScene,
-        radiance: &Buffer,
-        views: &GpuViews,
+    fn record_parts<'a>(
+        &'a self,
+        g: &mut Graph<'a, '_>,
+        mesh: &'a RayScene,
+        radiance: &'a Buffer,
+        views: &'a GpuViews,
         (view, samples, seed, parts): (u32, u32, u32, u32),
-        out: &Buffer,
+        out: &'a Buffer,
     ) -> Result<()> {
         let push = Push {
             view,
@@ -164,12 +164,8 @@ impl SourceIrradiance {
             ("Radiance", Bind::Buffer(radiance)),
         ];
         binds.extend([views.bind()]);
-        self.pipeline.dispatch(
-            cmd,
-            &binds,
-            bytes_of(&push),
-            (views.width * views.height, 1, 1),
-        )
+        let threads = (views.width * views.height, 1, 1);
+        g.pass("source irradiance", &self.pipeline, binds, bytes_of(&push), threads)
     }
 
     /// One tiny dispatch so that the driver compiles the shader (lavapipe compiles at first
@@ -183,7 +179,10 @@ impl SourceIrradiance {
         out: &Buffer,
     ) -> Result<()> {
         let mut res = Ok(());
-        gpu.submit(|cmd| res = self.record(cmd, mesh, radiance, views, 0, 1, 0, out))?;
+        gpu.submit(|cmd| {
+            let mut g = Graph::new(gpu, cmd, None);
+            res = self.record(&mut g, mesh, radiance, views, 0, 1, 0, out)
+        })?;
         res
     }
 
@@ -197,8 +196,10 @@ impl SourceIrradiance {
         samples: u32,
         seed: u32,
     ) -> Result<Vec<[f32; 4]>> {
-        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
-            self.record(cmd, mesh, radiance, views, view, samples, seed, out)
+        let gpu = &self.pipeline.gpu;
+        super::views::run_pixels(gpu, views, |cmd, out| {
+            let mut g = Graph::new(gpu, cmd, None);
+            self.record(&mut g, mesh, radiance, views, view, samples, seed, out)
         })
     }
 
@@ -211,9 +212,10 @@ impl SourceIrradiance {
         (view, samples, seed): (u32, u32, u32),
         parts: u32,
     ) -> Result<Vec<[f32; 4]>> {
-        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
+        let gpu = &self.pipeline.gpu;
+        super::views::run_pixels(gpu, views, |cmd, out| {
             let r = (view, samples, seed, parts);
-            self.record_parts(cmd, mesh, radiance, views, r, out)
+            self.record_parts(&mut Graph::new(gpu, cmd, None), mesh, radiance, views, r, out)
         })
     }
 

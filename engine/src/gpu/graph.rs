@@ -56,6 +56,22 @@ impl<'a, 't> Graph<'a, 't> {
         self.step(label, p, |cmd| p.dispatch(cmd, &binds, push, threads))
     }
 
+    /// A compute pass over `threads` invocations that first puts its own resources `binds` in
+    /// the table (a pass's private buffers, or what it reads and writes this time).
+    pub fn pass(
+        &mut self,
+        label: &str,
+        p: &Pipeline,
+        binds: impl IntoIterator<Item = (&'a str, Bind<'a>)>,
+        push: &[u8],
+        threads: (u32, u32, u32),
+    ) -> Result<()> {
+        for (name, bind) in binds {
+            self.set(name, bind);
+        }
+        self.dispatch(label, p, push, threads)
+    }
+
     /// A compute pass of exactly `groups` workgroups.
     pub fn dispatch_groups(
         &mut self,
