@@ -792,6 +792,11 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
             "preview".into(),
             "--rays".into(),
             "64".into(),
+            // Fewer cache paths and rays than the preset (32, 128): resuming is what this tests.
+            "--cache-samples".into(),
+            "8".into(),
+            "--texel-rays".into(),
+            "32".into(),
             "--lights".into(),
             "all".into(),
         ]
@@ -927,6 +932,10 @@ fn view_slices_bake_separately_and_join() {
         "preview",
         "--rays",
         "16",
+        "--cache-samples",
+        "8",
+        "--texel-rays",
+        "32",
         "--lights",
         "all",
         "--views",
@@ -947,6 +956,10 @@ fn view_slices_bake_separately_and_join() {
         "preview",
         "--rays",
         "16",
+        "--cache-samples",
+        "8",
+        "--texel-rays",
+        "32",
         "--lights",
         "all",
         "--views",
@@ -966,6 +979,10 @@ fn view_slices_bake_separately_and_join() {
         "preview",
         "--rays",
         "16",
+        "--cache-samples",
+        "8",
+        "--texel-rays",
+        "32",
         "--lights",
         "all",
         "--views",
@@ -992,7 +1009,13 @@ fn bake_accuracy_against_mitsuba_ground_truth() {
     common::render_ground_truth(&dir, &["--spp", "256"]);
     let scene = relit_engine::scene::Scene::load(&dir).unwrap();
     let gpu = common::gpu();
-    let params = BakeParams::final_quality();
+    // Final quality per pixel; the per-mesh caches (most of the cost: ~30k texels) at the
+    // preview's source cache and half the final's surface-cache paths.
+    let params = BakeParams {
+        source_cache_samples: BakeParams::preview().source_cache_samples,
+        cache_samples: BakeParams::final_quality().cache_samples / 2,
+        ..BakeParams::final_quality()
+    };
     bake(&gpu, &scene, &params, &mut |_: &str, _, _, _| {}).unwrap();
     let a = accuracy::evaluate(&gpu, &scene, &params).unwrap();
     eprintln!("{a:?}");
@@ -1267,6 +1290,7 @@ fn bake_covers_the_lights_in_use_and_others_are_baked_when_first_lit() {
     };
     let bake = |extra: &[&str]| {
         let mut a = vec!["bake", s, "--quality", "preview", "--rays", "16"];
+        a.extend(["--cache-samples", "8", "--texel-rays", "32"]);
         a.extend(extra);
         relit(&a)
     };

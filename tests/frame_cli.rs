@@ -16,9 +16,17 @@ fn ok(args: &[&str]) -> String {
     so + &se
 }
 
+/// The tiny room, baked, in a directory of its own named `name` (tests change their copy). The
+/// bake (its per-mesh caches are most of a test's time) runs once per test binary.
 fn baked_tiny(name: &str) -> std::path::PathBuf {
-    let d = common::tempdir(name);
-    let s = d.join("room");
+    static BAKED: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    let s = common::tempdir(name).join("room");
+    common::copy_dir(BAKED.get_or_init(bake_tiny), &s);
+    s
+}
+
+fn bake_tiny() -> std::path::PathBuf {
+    let s = common::tempdir("baked-template").join("room");
     let sp = s.to_str().unwrap();
     ok(&["scene", "synth", sp, "--views", "6", "--res", "32x24"]);
     // Before the bake: a clear error that says what to run.

@@ -101,15 +101,18 @@ fn ratio_renders(dir: &Path, preset: &str, condition: &str) -> Vec<f32> {
 }
 
 /// A copy of tests/scenes/hand_room in a temp dir `name`, its photos and truth rendered by
-/// Mitsuba (128 spp).
+/// Mitsuba (128 spp; rendered once per test binary, each test gets its own copy).
 fn hand_room(name: &str) -> std::path::PathBuf {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/hand_room");
+    static RENDERED: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    let template = RENDERED.get_or_init(|| {
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/hand_room");
+        let dir = common::tempdir("hand-room-rendered");
+        common::copy_dir(&src, &dir);
+        common::render_ground_truth(&dir, &["--spp", "128"]);
+        dir
+    });
     let dir = common::tempdir(name);
-    for e in std::fs::read_dir(&src).unwrap() {
-        let e = e.unwrap();
-        std::fs::copy(e.path(), dir.join(e.file_name())).unwrap();
-    }
-    common::render_ground_truth(&dir, &["--spp", "128"]);
+    common::copy_dir(template, &dir);
     dir
 }
 

@@ -100,3 +100,17 @@ pub fn run_relit(args: &[&str]) -> (i32, String, String) {
     );
     (code, so, se)
 }
+
+/// Copies directory `from` (with everything in it, a scene's bake cache included) to `to`.
+#[allow(dead_code)]
+pub fn copy_dir(from: &std::path::Path, to: &std::path::Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().map(|e| e.unwrap()) {
+        let (src, dst) = (e.path(), to.join(e.file_name()));
+        if src.is_dir() {
+            copy_dir(&src, &dst);
+        } else {
+            std::fs::copy(&src, &dst).unwrap();
+        }
+    }
+}

@@ -162,6 +162,26 @@ def undistort(rec_dir: Path, images: Path, out: Path, long_side: int):
     return tmp
 
 
+def carry_exif(originals: Path, photos: Path):
+    """Puts each original's EXIF (exposure time, f-number, ISO: what relit puts the photos on one
+    radiance scale with) back into its undistorted photo, which the undistorter writes without
+    it. A photo is saved again only when its original has EXIF."""
+    from PIL import Image
+
+    for p in sorted(photos.iterdir()):
+        src = originals / p.name
+        if not src.exists():
+            continue
+        exif = Image.open(src).info.get("exif", b"")
+        if not exif:
+            continue
+        im = Image.open(p)
+        im.load()
+        tmp = p.with_suffix(".tmp" + p.suffix)
+        im.save(tmp, quality=95, exif=exif)
+        os.replace(tmp, p)
+
+
 def good_points(rec):
     """Points seen by MIN_TRACK photos within MAX_REPROJ_PX, with the mean direction towards the
     cameras that saw them (which way the surface faces)."""
@@ -290,6 +310,7 @@ def run(a):
     rec.write(world)
     say("world", f"{scale:.4g} m per SfM unit, +Y up")
     und = undistort(world, work / "images", a.out, a.size)
+    carry_exif(work / "images", und / "images")
     pts, towards = good_points(pycolmap.Reconstruction(str(und / "sparse")))
     stage = a.out.parent / (a.out.name + ".tmp")
     shutil.rmtree(stage, ignore_errors=True)

@@ -50,6 +50,24 @@ class CaptureGeometry(unittest.TestCase):
             self.assertIn("element vertex 4", head)
             self.assertIn("element face 4", head)
 
+    def test_exposure_tags_reach_the_undistorted_photos(self):
+        from PIL import Image
+        with tempfile.TemporaryDirectory() as d:
+            orig, und = Path(d) / "orig", Path(d) / "und"
+            orig.mkdir(), und.mkdir()
+            exif = Image.Exif()
+            exif[0x8769] = {0x829A: 0.01, 0x829D: 2.8, 0x8827: 200}  # Exif IFD: t, N, ISO
+            Image.new("RGB", (8, 6), (90, 90, 90)).save(orig / "a.jpg", exif=exif)
+            Image.new("RGB", (8, 6), (90, 90, 90)).save(orig / "b.jpg")
+            for n in ("a.jpg", "b.jpg"):
+                Image.new("RGB", (4, 3), (80, 80, 80)).save(und / n)
+            C.carry_exif(orig, und)
+            ifd = Image.open(und / "a.jpg").getexif().get_ifd(0x8769)
+            self.assertAlmostEqual(float(ifd[0x829A]), 0.01)
+            self.assertEqual(int(ifd[0x8827]), 200)
+            self.assertEqual(Image.open(und / "a.jpg").size, (4, 3), "the undistorted pixels stay")
+            self.assertFalse(Image.open(und / "b.jpg").info.get("exif"), "no EXIF made up")
+
     def test_too_few_photos_is_an_error_naming_the_folder(self):
         with tempfile.TemporaryDirectory() as d:
             (Path(d) / "a.jpg").write_bytes(b"")

@@ -377,7 +377,9 @@ impl Stages<'_> {
                 res = match &source_cache {
                     Some(c) => {
                         let cache = (&c.0, &c.1);
-                        sc.record(&mut g, &si, mesh, &radiance, views, cache, v, n, p.seed, target)
+                        sc.record(
+                            &mut g, &si, mesh, &radiance, views, cache, v, n, p.seed, target,
+                        )
                     }
                     None => si.record(&mut g, mesh, &radiance, views, v, n, p.seed, target),
                 };

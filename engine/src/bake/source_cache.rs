@@ -153,7 +153,13 @@ impl SourceCache {
         ];
         binds.extend([views.bind()]);
         let threads = (views.width * views.height, 1, 1);
-        g.pass("source irradiance", &self.pipeline, binds, bytes_of(&push), threads)
+        g.pass(
+            "source irradiance",
+            &self.pipeline,
+            binds,
+            bytes_of(&push),
+            threads,
+        )
     }
 
     /// Runs one view and reads the result back.
@@ -172,7 +178,9 @@ impl SourceCache {
         let gpu = &self.pipeline.gpu;
         super::views::run_pixels(gpu, views, |cmd, out| {
             let g = &mut Graph::new(gpu, cmd, None);
-            self.record(g, si, mesh, radiance, views, cache, view, samples, seed, out)
+            self.record(
+                g, si, mesh, radiance, views, cache, view, samples, seed, out,
+            )
         })
     }
 }

@@ -165,7 +165,13 @@ impl SourceIrradiance {
         ];
         binds.extend([views.bind()]);
         let threads = (views.width * views.height, 1, 1);
-        g.pass("source irradiance", &self.pipeline, binds, bytes_of(&push), threads)
+        g.pass(
+            "source irradiance",
+            &self.pipeline,
+            binds,
+            bytes_of(&push),
+            threads,
+        )
     }
 
     /// One tiny dispatch so that the driver compiles the shader (lavapipe compiles at first
@@ -215,7 +221,14 @@ impl SourceIrradiance {
         let gpu = &self.pipeline.gpu;
         super::views::run_pixels(gpu, views, |cmd, out| {
             let r = (view, samples, seed, parts);
-            self.record_parts(&mut Graph::new(gpu, cmd, None), mesh, radiance, views, r, out)
+            self.record_parts(
+                &mut Graph::new(gpu, cmd, None),
+                mesh,
+                radiance,
+                views,
+                r,
+                out,
+            )
         })
     }
 
