@@ -713,6 +713,10 @@ fn added_irradiance_matches_cpu_reference() {
 
 /// A small scenegen scene with images from the CPU shader (no Mitsuba needed): the bake's
 /// control flow (cache, resume, slices) does not depend on image realism, nor on a fine mesh.
+/// Fewer surface-cache paths and source-cache rays than the preview preset (32, 128), for bakes
+/// that test behaviour (resuming, slices, which lights), not accuracy.
+const LIGHT_CACHES: [&str; 4] = ["--cache-samples", "8", "--texel-rays", "32"];
+
 fn bake_scene(name: &str) -> std::path::PathBuf {
     let dir = common::tempdir(name);
     let opts = relit_scenegen::room::RoomOptions {
@@ -792,14 +796,12 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
             "preview".into(),
             "--rays".into(),
             "64".into(),
-            // Fewer cache paths and rays than the preset (32, 128): resuming is what this tests.
-            "--cache-samples".into(),
-            "8".into(),
-            "--texel-rays".into(),
-            "32".into(),
             "--lights".into(),
             "all".into(),
         ]
+        .into_iter()
+        .chain(LIGHT_CACHES.map(String::from))
+        .collect::<Vec<_>>()
     };
     // Reference: one uninterrupted bake.
     let a = bake_scene("bake-ref");
@@ -925,22 +927,20 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
 fn view_slices_bake_separately_and_join() {
     let d = bake_scene("bake-slices");
     let s = d.to_str().unwrap();
-    let out = relit(&[
-        "bake",
-        s,
-        "--quality",
-        "preview",
-        "--rays",
-        "16",
-        "--cache-samples",
-        "8",
-        "--texel-rays",
-        "32",
-        "--lights",
-        "all",
-        "--views",
-        "0..2",
-    ]);
+    let slice = |views: &str| {
+        let args = [
+            "bake",
+            s,
+            "--quality",
+            "preview",
+            "--rays",
+            "16",
+            "--lights",
+            "all",
+        ];
+        relit(&[&args[..], &LIGHT_CACHES, &["--views", views]].concat())
+    };
+    let out = slice("0..2");
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("wait for every view"), "{text}");
@@ -949,22 +949,7 @@ fn view_slices_bake_separately_and_join() {
         2 + 2 * 2,
         "params.json, the source cache and only the slice's E_src (EXR + BC6H)"
     );
-    let out = relit(&[
-        "bake",
-        s,
-        "--quality",
-        "preview",
-        "--rays",
-        "16",
-        "--cache-samples",
-        "8",
-        "--texel-rays",
-        "32",
-        "--lights",
-        "all",
-        "--views",
-        "2..4",
-    ]);
+    let out = slice("2..4");
     assert!(out.status.success());
     assert_eq!(
         cache_files(&d).len(),
@@ -972,22 +957,7 @@ fn view_slices_bake_separately_and_join() {
         "params.json, albedo, source cache, 4 E_src, then slice 2..4's maps, each as EXR and \
          BC6H, and the 2 lights' surface caches"
     );
-    let out = relit(&[
-        "bake",
-        s,
-        "--quality",
-        "preview",
-        "--rays",
-        "16",
-        "--cache-samples",
-        "8",
-        "--texel-rays",
-        "32",
-        "--lights",
-        "all",
-        "--views",
-        "3..9",
-    ]);
+    let out = slice("3..9");
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("3..9"));
 }
@@ -1176,19 +1146,10 @@ fn bc6h_storage_decodes_on_the_device_with_high_log_psnr() {
 }
 
 /// Copies a scene directory without its bake cache.
+/// A copy of a scene without its bake cache.
 fn copy_scene(from: &std::path::Path, to: &std::path::Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap().map(|e| e.unwrap()) {
-        let (src, dst) = (e.path(), to.join(e.file_name()));
-        if e.file_name() == ".relit" {
-            continue;
-        }
-        if src.is_dir() {
-            copy_scene(&src, &dst);
-        } else {
-            std::fs::copy(&src, &dst).unwrap();
-        }
-    }
+    common::copy_dir(from, to);
+    let _ = std::fs::remove_dir_all(to.join(".relit"));
 }
 
 #[test]
@@ -1290,7 +1251,7 @@ fn bake_covers_the_lights_in_use_and_others_are_baked_when_first_lit() {
     };
     let bake = |extra: &[&str]| {
         let mut a = vec!["bake", s, "--quality", "preview", "--rays", "16"];
-        a.extend(["--cache-samples", "8", "--texel-rays", "32"]);
+        a.extend(LIGHT_CACHES);
         a.extend(extra);
         relit(&a)
     };

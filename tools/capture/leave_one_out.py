@@ -19,6 +19,7 @@ import subprocess
 import sys
 
 import numpy as np
+import torch
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "train"))
@@ -85,6 +86,7 @@ def main():
     render(ARGS.scene, picks, ARGS.out)
     from lpips_alex import LPIPS
     lp = LPIPS(ARGS.lpips_archive)
+    to_t = lambda v: torch.from_numpy(np.ascontiguousarray(v.transpose(2, 0, 1)))[None]
     rows, sheet = [], []
     for i, (name, img_path) in picks:
         imgs = {m: E.read_exr(os.path.join(ARGS.out, "renders", f"{i:04d}.{m}.exr")) for m in MODES}
@@ -98,7 +100,6 @@ def main():
         for m in MODES:
             t = E.tm(imgs[m])
             mix = np.where(covered[..., None], t, truth)
-            to_t = lambda v: __import__("torch").from_numpy(np.ascontiguousarray(v.transpose(2, 0, 1)))[None]
             row[m] = {"psnr": E.psnr(t, truth, covered), "psnr_holes": E.psnr(t, truth, holes),
                       "lpips": float(lp(to_t(mix), to_t(truth))[0])}
         rows.append(row)
