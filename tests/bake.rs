@@ -535,7 +535,8 @@ fn surface_cache_matches_cpu_reference() {
                 list: &lb,
                 count: list.len() as u32,
             };
-            r = pass.record(cmd, &rs, &gl, &ab, &l, p, texels, &out)
+            let g = &mut relit_engine::gpu::Graph::new(&gpu, cmd, None);
+            r = pass.record(g, &rs, &gl, &ab, &l, p, texels, &out)
         })
         .unwrap();
         r.unwrap();
@@ -727,6 +728,7 @@ fn bake_scene(name: &str) -> std::path::PathBuf {
         test_views: 1,
         light_views: 0,
         lamp_colours: Default::default(),
+        proxy_error: 1.0,
     };
     // A proxy three times coarser than scenegen's (~11k triangles, not ~100k): the bake's cost
     // is mostly its surface cache, whose texels follow the mesh.
@@ -974,6 +976,7 @@ fn bake_accuracy_against_mitsuba_ground_truth() {
         test_views: 1,
         lamp_colours: Default::default(),
         light_views: 3,
+        proxy_error: 1.0,
     };
     relit_scenegen::generate(&dir, 12, &opts).unwrap();
     common::render_ground_truth(&dir, &["--spp", "256"]);

@@ -346,3 +346,28 @@ fn bad_path_keyframes_are_refused() {
         );
     }
 }
+
+#[test]
+fn mesh_option_gives_a_capture_its_proxy() {
+    let root = common::tempdir("cli-mesh");
+    let dir = root.join("capture");
+    let d = dir.to_str().unwrap();
+    let (code, _, err) = relit(&["scene", "synth", d, "--format", "colmap", "--views", "3"]);
+    assert_eq!(code, 0, "{err}");
+    // The mesh made elsewhere, as a user's MVS tool would leave it.
+    let mesh = root.join("from_mvs.ply");
+    std::fs::rename(dir.join("mesh.ply"), &mesh).unwrap();
+    let (code, _, err) = relit(&["scene", "check", "--quick", d]);
+    assert_ne!(code, 0);
+    assert!(err.contains("no mesh found"), "{err}");
+    let m = mesh.to_str().unwrap();
+    let (code, out, err) = relit(&["scene", "check", "--quick", d, "--mesh", m]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains(&format!("mesh: {m}")), "{out}");
+    let (code, _, err) = relit(&["scene", "check", "--quick", d, "--mesh", "nowhere.ply"]);
+    assert_ne!(code, 0);
+    assert!(err.contains("nowhere.ply"), "{err}");
+    let (code, _, err) = relit(&["dataset", d, "--mesh", m]);
+    assert_ne!(code, 0);
+    assert!(err.contains("--mesh"), "{err}");
+}

@@ -18,6 +18,7 @@ fn small() -> RoomOptions {
         test_views: 2,
         light_views: 3,
         lamp_colours: Default::default(),
+        proxy_error: 1.0,
     }
 }
 
@@ -170,6 +171,68 @@ fn proxy_loses_thin_parts_rounds_corners_and_stays_near_the_surface() {
     let full = tessellate(&wall.prim, p.edge).triangles.len();
     let holed = degrade(&wall, &holes, &mut rng).triangles.len();
     assert!(holed < full, "no hole: {holed} of {full}");
+}
+
+#[test]
+fn proxy_error_scales_the_degradation_and_zero_keeps_the_true_surfaces() {
+    let d = ProxyParams::default();
+    let half = ProxyParams::scaled(3, 0.5);
+    assert_eq!((half.seed, half.edge), (3, d.edge));
+    for (h, f) in [
+        (half.noise_amp, d.noise_amp),
+        (half.wall_bump_amp, d.wall_bump_amp),
+        (half.corner_radius, d.corner_radius),
+        (half.thin, d.thin),
+        (half.hole_prob, d.hole_prob),
+    ] {
+        assert!((h - 0.5 * f).abs() < 1e-7, "{h} is not half of {f}");
+    }
+    assert_eq!(ProxyParams::scaled(3, 7.0).noise_amp, d.noise_amp);
+    let exact = ProxyParams::scaled(3, 0.0);
+    let mut rng = Rng::new(1);
+    let obj = |prim, surface| Object {
+        name: "o".into(),
+        prim,
+        material: "m".into(),
+        surface,
+        shell: false,
+    };
+    // A 1.5 cm leg is kept, and a box's vertices lie on its faces (no noise, no rounding).
+    let leg = Prim::Box {
+        lo: Vec3::ZERO,
+        hi: Vec3::new(0.015, 0.4, 0.015),
+        inward: false,
+    };
+    assert!(!degrade(&obj(leg, Surface::Textured), &exact, &mut rng)
+        .triangles
+        .is_empty());
+    let (lo, hi) = (Vec3::ZERO, Vec3::new(0.6, 0.4, 0.5));
+    let b = Prim::Box {
+        lo,
+        hi,
+        inward: false,
+    };
+    for q in &degrade(&obj(b, Surface::Textured), &exact, &mut rng).positions {
+        let face = (*q - lo).abs().min((*q - hi).abs()).min_element();
+        assert!(
+            face < 1e-5 && q.cmpge(lo - 1e-5).all() && q.cmple(hi + 1e-5).all(),
+            "{q}"
+        );
+    }
+    // A textureless wall keeps every triangle.
+    let wall = Object {
+        shell: true,
+        ..obj(
+            Prim::Quad {
+                corner: Vec3::ZERO,
+                u: Vec3::Y * 2.5,
+                v: Vec3::Z * 4.0,
+            },
+            Surface::Textureless,
+        )
+    };
+    let full = tessellate(&wall.prim, exact.edge).triangles.len();
+    assert_eq!(degrade(&wall, &exact, &mut rng).triangles.len(), full);
 }
 
 #[test]

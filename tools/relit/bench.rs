@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::Subcommand;
 use glam::Vec3;
-use relit_engine::gpu::{vk, Buffer, GpuOptions, Graph, MemoryLocation, RayScene, Timer};
+use relit_engine::gpu::{vk, Buffer, GpuOptions, MemoryLocation, RayScene, Timer};
 use relit_engine::scene::{synth, Mesh};
 use relit_engine::trace::{Hit, Ray, RayCaster};
 
@@ -14,10 +14,8 @@ use relit_engine::trace::{Hit, Ray, RayCaster};
 pub enum BenchCmd {
     /// Ray-query rays per second (closest hit and any hit) and BLAS build time.
     Rays {
-        /// Mesh to trace (.obj or .ply); default: a procedural room of ~100k triangles.
-        #[arg(long)]
-        mesh: Option<PathBuf>,
-        /// Rays per dispatch.
+        /// Rays per dispatch (the mesh traced: `--mesh`, default a procedural room of ~100k
+        /// triangles).
         #[arg(long, default_value_t = 1 << 18)]
         rays: u32,
         /// Timed dispatches per mode (the median is reported).
@@ -40,11 +38,11 @@ pub enum BenchCmd {
     /// the raw ray-query rate on the same mesh.
     Bake {
         scene: PathBuf,
-        /// Views to time (the first N).
-        #[arg(long, default_value_t = 2)]
-        views: usize,
         #[arg(long, value_enum, default_value = "final")]
         quality: crate::Quality,
+        /// Added lights to bake, as `relit bake --lights`: presets, all, or names A,B.
+        #[arg(long, default_value = "presets")]
+        lights: String,
     },
     /// Whole frames of a baked scene along its test path (or its views): GPU time per pass
     /// (G-buffer, reproject, irradiance, target mirror, features, each network stage, output),
@@ -129,16 +127,15 @@ pub enum BenchCmd {
 pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
     match cmd {
         BenchCmd::Rays {
-            mesh,
             rays,
             repeats,
             json,
-        } => rays_bench(mesh.as_ref(), *rays, *repeats, json.as_ref(), opts),
+        } => rays_bench(crate::mesh_override(), *rays, *repeats, json.as_ref(), opts),
         BenchCmd::Bake {
             scene,
-            views,
             quality,
-        } => bake_bench(scene, *views, *quality, opts),
+            lights,
+        } => bake_bench(scene, *quality, lights, opts),
         BenchCmd::Bc6h { cache, maps } => bc6h_bench(cache, *maps, opts),
         BenchCmd::Gather {
             count,
@@ -261,7 +258,7 @@ fn gather_bench(count: u32, table: u32, repeats: u32, opts: &GpuOptions) -> Resu
 }
 
 fn rays_bench(
-    mesh_path: Option<&PathBuf>,
+    mesh_path: Option<&std::path::Path>,
     n: u32,
     repeats: u32,
     json: Option<&PathBuf>,
@@ -366,246 +363,76 @@ fn timed(
     Ok(timer.read()?[0].1)
 }
 
+/// The bake users run (`relit bake`), from scratch into a scratch cache (the scene's own cache
+/// is left alone): wall time, rays and rate per stage, peak host memory, and the raw
+/// closest-hit rate on the same mesh for comparison.
 fn bake_bench(
     dir: &std::path::Path,
-    nviews: usize,
     quality: crate::Quality,
+    lights: &str,
     opts: &GpuOptions,
 ) -> Result<()> {
-    use relit_engine::bake::{
-        surface_cache, AddedIrradiance, BakeParams, CacheLayout, GpuCacheLayout, GpuLight,
-        GpuViews, Mirror, SourceIrradiance, SurfaceCache, ViewData,
+    let mut scene = crate::load_scene(dir)?;
+    let p = relit_engine::bake::BakeParams {
+        lights: crate::bake_lights_arg(&scene, lights, false)?,
+        ..crate::quality_params(quality)
     };
-    let scene = relit_engine::scene::Scene::load(dir)?;
-    let p = match quality {
-        crate::Quality::Preview => BakeParams::preview(),
-        crate::Quality::Final => BakeParams::final_quality(),
-    };
+    // The cache lives under the scene's root; the photos and the mesh are read where they are.
+    let scratch = std::env::temp_dir().join(format!("relit-bench-bake-{}", std::process::id()));
+    std::fs::create_dir_all(&scratch)?;
+    scene.root = scratch.clone();
     let gpu = crate::open_gpu(opts)?;
-    let images = scene.view_images()?;
-    let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
-    let geom = relit_engine::bake::run::bake_mesh(&scene, &p);
-    let mesh = RayScene::new(&gpu, &geom.positions, &geom.triangles)?;
-    let data = ViewData::build(&gpu, &mesh, &cams, &images)?;
-    let views = GpuViews::upload(&gpu, &data)?;
-    let npix = data.pixels() as u64;
-    let out = Buffer::new(
-        &gpu,
-        "out",
-        npix * 16,
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-        MemoryLocation::GpuOnly,
-    )?;
-    let layout = CacheLayout::new(&geom);
-    let glayout = GpuCacheLayout::upload(&gpu, &layout)?;
-    let cache = Buffer::new(
-        &gpu,
-        "surface cache",
-        layout.texels() as u64 * 16,
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-        MemoryLocation::GpuOnly,
-    )?;
-    let albedo: Vec<[f32; 4]> = vec![[0.5, 0.5, 0.5, 1.0]; geom.positions.len()];
-    let ab = Buffer::from_slice(
-        &gpu,
-        "albedo",
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-        &albedo,
-    )?;
-    let (si, mi, ai, sc) = (
-        SourceIrradiance::new(&gpu, &scene.lights)?,
-        Mirror::new(&gpu)?,
-        AddedIrradiance::new(&gpu)?,
-        SurfaceCache::new(&gpu)?,
-    );
-    let light = scene.lights.iter().find(|l| !l.original).map(GpuLight::new);
-    let ap = p.added();
     println!("device: {}", gpu.caps.name);
     println!(
-        "scene: {} views at {}x{}, {} bake-mesh triangles, {} cache texels; timing {} view(s): {} rays/px (E_src), {} shadow rays/px + {} paths/texel x {} bounces (E_add)",
+        "scene: {} views at {}x{}, {} proxy triangles",
         scene.views.len(),
-        data.width,
-        data.height,
-        geom.triangles.len(),
-        layout.texels(),
-        nviews.min(scene.views.len()),
-        p.irradiance_samples,
-        p.added_samples,
-        p.cache_samples,
-        p.bounces
+        scene.views[0].camera.width,
+        scene.views[0].camera.height,
+        scene.mesh.triangles.len()
     );
-    let radiance = relit_engine::bake::radiance_mesh::build(
-        &gpu,
-        &si,
-        &scene.lights,
-        &geom,
-        &mesh,
-        &views,
-        p.irradiance_samples,
-        1,
-    )?;
-    // Warm-up: lavapipe compiles each shader at its first dispatch.
-    si.record_warm(&gpu, &mesh, &radiance, &views, &out)?;
-    // The surface cache of one light, whole (it does not depend on the view).
-    let mut t_c = 0.0;
-    if let Some(l) = &light {
-        let mut first = 0;
-        while first < glayout.texels {
-            let count = surface_cache::CHUNK.min(glayout.texels - first);
-            t_c += timed(&gpu, "cache", |cmd| {
-                sc.record(
-                    cmd,
-                    &mesh,
-                    &glayout,
-                    &ab,
-                    l,
-                    ap,
-                    surface_cache::Texels::Range { first, count },
-                    &cache,
-                )
-            })?;
-            first += count;
-        }
-    }
-    // With declared original lights, E_src's indirect part comes from the source cache: traced
-    // once per bake (wall clock: it runs in several dispatches), then read by every view.
-    let src_cache = relit_engine::bake::run::uses_source_cache(&scene, &p);
-    let (spass, mut t_sc) = (relit_engine::bake::SourceCache::new(&gpu)?, 0.0);
-    let scb = if src_cache {
-        let t = std::time::Instant::now();
-        let opts = (p.source_cache_samples, 1, 2);
-        let v = relit_engine::bake::source_cache::trace(
-            &gpu,
-            &si,
-            &mesh,
-            &radiance,
-            &views,
-            &layout,
-            opts,
-            &mut |_, _| {},
-        )?;
-        t_sc = t.elapsed().as_secs_f64();
-        Buffer::from_slice(
-            &gpu,
-            "source cache",
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            &v,
-        )?
-    } else {
-        Buffer::from_slice(
-            &gpu,
-            "unused",
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            &[[0f32; 4]],
-        )?
-    };
-    let (mut t_s, mut t_m, mut t_a) = (0.0, 0.0, 0.0);
-    let n = nviews.min(scene.views.len()).max(1);
-    for v in 0..n as u32 {
-        let ns = p.irradiance_samples;
-        t_s += timed(&gpu, "e_src", |cmd| match src_cache {
-            true => spass.record(
-                &mut Graph::new(&gpu, cmd, None),
-                &si,
-                &mesh,
-                &radiance,
-                &views,
-                (&glayout, &scb),
-                v,
-                ns,
-                1,
-                &out,
-            ),
-            false => {
-                let g = &mut Graph::new(&gpu, cmd, None);
-                si.record(g, &mesh, &radiance, &views, v, ns, 1, &out)
-            }
-        })?;
-        t_m += timed(&gpu, "m_src", |cmd| mi.record(cmd, &mesh, &views, v, &out))?;
-        if let Some(l) = &light {
-            t_a += timed(&gpu, "e_add", |cmd| {
-                ai.record(cmd, &mesh, &views, &glayout, &cache, v, l, ap, &out)
-            })?;
-        }
-    }
-    let per = |ms: f64| ms / n as f64 * 1e-3;
-    let rate = |rays: u64, ms: f64| rays as f64 * n as f64 / (ms * 1e-3) * 1e-6;
-    // Declared original lights add one shadow ray per sample (next-event estimation); with
-    // the source cache a pixel traces only those.
-    let per_sample = match (src_cache, scene.lights.iter().any(|l| l.original)) {
-        (true, _) | (false, false) => 1,
-        (false, true) => 2,
-    };
-    let rays_s = npix * p.irradiance_samples as u64 * per_sample;
-    if src_cache {
-        let rays = layout.texels() as u64 * p.source_cache_samples as u64;
-        println!(
-            "source cache:      {t_sc:.2} s, {:.3} M rays/s ({} texels x {} rays)",
-            rays as f64 / t_sc * 1e-6,
-            layout.texels(),
-            p.source_cache_samples
-        );
-    }
-    let rays_a = npix * p.added_samples as u64;
-    let rays_c = surface_cache::max_rays(layout.texels(), ap);
-    println!(
-        "source irradiance: {:.2} s/view, {:.3} M rays/s ({} rays/px)",
-        per(t_s),
-        rate(rays_s, t_s),
-        p.irradiance_samples as u64 * per_sample
-    );
-    println!(
-        "mirror:            {:.3} s/view, {:.3} M rays/s (1 ray/px)",
-        per(t_m),
-        rate(npix, t_m)
-    );
-    if light.is_some() {
-        println!(
-            "surface cache:     {:.2} s/light, at most {:.3} M rays/s ({} texels x {} paths)",
-            t_c * 1e-3,
-            rays_c as f64 / (t_c * 1e-3) * 1e-6,
-            layout.texels(),
-            p.cache_samples
-        );
-        println!(
-            "added irradiance:  {:.2} s/view/light, {:.3} M rays/s ({} shadow rays/px + cache lookup)",
-            per(t_a),
-            rate(rays_a, t_a),
-            p.added_samples
-        );
-    }
-    // The raw rate on the same mesh, for comparison.
-    let caster = RayCaster::new(&gpu)?;
-    let rays = make_rays(&scene.mesh, 1 << 17, false, 3);
-    let rb = Buffer::from_slice(&gpu, "rays", vk::BufferUsageFlags::STORAGE_BUFFER, &rays)?;
+    let t0 = Instant::now();
+    let report = relit_engine::bake::bake(&gpu, &scene, &p, &mut |_: &str, _, _, _| {});
+    let secs = t0.elapsed().as_secs_f64();
+    let _ = std::fs::remove_dir_all(&scratch);
+    crate::print_stages(&report?);
+    println!("bake: {secs:.1} s, peak host memory {}", peak_memory());
+    raw_rate(&gpu, &scene.mesh)
+}
+
+/// The process's peak resident memory (Linux: VmHWM).
+fn peak_memory() -> String {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            let l = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+            let kb: f64 = l.split_whitespace().nth(1)?.parse().ok()?;
+            Some(format!("{:.2} GB", kb / 1e6 * 1.024))
+        })
+        .unwrap_or_else(|| "unknown".into())
+}
+
+/// The raw closest-hit rate of random rays on `mesh`.
+fn raw_rate(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>, mesh: &Mesh) -> Result<()> {
+    let rs = RayScene::new(gpu, &mesh.positions, &mesh.triangles)?;
+    let caster = RayCaster::new(gpu)?;
+    let rays = make_rays(mesh, 1 << 17, false, 3);
+    let rb = Buffer::from_slice(gpu, "rays", vk::BufferUsageFlags::STORAGE_BUFFER, &rays)?;
     let hits = Buffer::new(
-        &gpu,
+        gpu,
         "hits",
         (rays.len() * 16) as u64,
         vk::BufferUsageFlags::STORAGE_BUFFER,
         MemoryLocation::GpuOnly,
     )?;
-    timed(&gpu, "warm", |cmd| {
-        caster.record(cmd, &mesh, &rb, &hits, 1024, false)
+    timed(gpu, "warm", |cmd| {
+        caster.record(cmd, &rs, &rb, &hits, 1024, false)
     })?;
-    let ms = timed(&gpu, "raw", |cmd| {
-        caster.record(cmd, &mesh, &rb, &hits, rays.len() as u32, false)
+    let ms = timed(gpu, "raw", |cmd| {
+        caster.record(cmd, &rs, &rb, &hits, rays.len() as u32, false)
     })?;
     println!(
         "raw closest-hit rate on this mesh: {:.3} M rays/s",
         rays.len() as f64 / (ms * 1e-3) * 1e-6
-    );
-    // `relit bake` bakes the lights the presets light; the others when first lit.
-    let in_use = scene.preset_lights().len() as f64;
-    let all = scene.lights.iter().filter(|l| !l.original).count() as f64;
-    let fixed = scene.views.len() as f64 * (per(t_s) + per(t_m)) + t_sc;
-    let light = scene.views.len() as f64 * per(t_a) + t_c * 1e-3;
-    println!(
-        "projected bake: {:.0} s with the {in_use} light(s) the presets light, {:.0} s with all {all} ({} views; {:.1} s per light)",
-        fixed + light * in_use,
-        fixed + light * all,
-        scene.views.len(),
-        light
     );
     Ok(())
 }
@@ -618,7 +445,7 @@ fn light_bench(
     opts: &GpuOptions,
 ) -> Result<()> {
     use relit_engine::frame::{Lighting, Mode};
-    let scene = relit_engine::scene::Scene::load(dir)?;
+    let scene = crate::load_scene(dir)?;
     let gpu = crate::open_gpu(opts)?;
     let mut args = fa.clone();
     args.mode = Some(crate::render::ModeArg::Ratio);
@@ -909,7 +736,7 @@ fn frame_bench(
 ) -> Result<()> {
     use relit_engine::frame::{Lighting, Mode, Renderer};
     use relit_engine::net::{NetConfig, NetKernels, Network, RandomParams};
-    let scene = relit_engine::scene::Scene::load(dir)?;
+    let scene = crate::load_scene(dir)?;
     let gpu = crate::open_gpu(opts)?;
     let mut args = fa.clone();
     // The frame benchmark times the network unless another mode is asked for.

@@ -55,6 +55,12 @@ pub struct DatasetArgs {
     /// `mixed` (half of them saturated: red, green, blue, warm, cold).
     #[arg(long, value_enum, default_value = "mixed")]
     pub lamp_colours: relit_scenegen::room::LampColours,
+    /// How far each room's proxy is from its true geometry, as a fraction of scenegen's
+    /// MVS-like degradation (0: the true surfaces, as in rooms written by hand); a list
+    /// (`1,0.5,0`) is taken in turn after `--light-views`: room k has light_views[k mod a] and
+    /// proxy_error[(k div a) mod b], so every pair occurs.
+    #[arg(long, default_value = "1", value_delimiter = ',', num_args = 1..)]
+    pub proxy_error: Vec<f32>,
     /// Samples per pixel of the ground truth.
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
@@ -140,6 +146,9 @@ fn jobs(a: &DatasetArgs) -> Result<Vec<Job>> {
     if a.train == 0 {
         bail!("--train 0: a dataset needs training scenes");
     }
+    if let Some(e) = a.proxy_error.iter().find(|e| !(0.0..=1.0).contains(*e)) {
+        bail!("--proxy-error {e}: each value must be between 0 (true surfaces) and 1");
+    }
     let split =
         |s: &'static str, r: std::ops::Range<u64>| r.map(move |seed| Job { split: s, seed });
     Ok(split("train", train).chain(split("val", val)).collect())
@@ -219,6 +228,7 @@ fn ground_truth(a: &DatasetArgs, dir: &Path, seed: u64) -> Result<()> {
         test_views: a.test_views,
         light_views: a.light_views[(seed % a.light_views.len() as u64) as usize],
         lamp_colours: a.lamp_colours,
+        proxy_error: proxy_error(a, seed),
     };
     relit_scenegen::generate(dir, seed, &o)?;
     let script = crate::tools_dir().join("groundtruth/render.py");
@@ -238,6 +248,12 @@ fn ground_truth(a: &DatasetArgs, dir: &Path, seed: u64) -> Result<()> {
     }
     std::fs::write(dir.join(DONE), marker(a))?;
     Ok(())
+}
+
+/// The proxy error of room `seed`: the list is walked once per full turn of `--light-views`.
+fn proxy_error(a: &DatasetArgs, seed: u64) -> f32 {
+    let turn = seed / a.light_views.len() as u64;
+    a.proxy_error[(turn % a.proxy_error.len() as u64) as usize]
 }
 
 /// What the ground-truth marker holds: "denoised" or empty (raw targets, as datasets before

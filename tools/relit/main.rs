@@ -28,6 +28,12 @@ struct Cli {
     /// Turn on the Khronos validation layer (also RELIT_VALIDATE=1).
     #[arg(long, global = true)]
     validate: bool,
+    /// The proxy mesh (PLY or OBJ) instead of the one the scene names or keeps beside its
+    /// views: a mesh made by another tool for a COLMAP, SIBR or transforms.json capture. Give
+    /// it to every command of that scene (the bake cache is keyed by the mesh's contents).
+    /// `bench rays`: the mesh to trace.
+    #[arg(long, global = true, value_name = "FILE")]
+    mesh: Option<PathBuf>,
     #[command(subcommand)]
     cmd: Cmd,
 }
@@ -352,6 +358,19 @@ fn gpu_options(cli: &Cli) -> GpuOptions {
     o
 }
 
+/// `--mesh`, set once in `main` before any command runs.
+static MESH: std::sync::OnceLock<Option<PathBuf>> = std::sync::OnceLock::new();
+
+/// The `--mesh` the command line gave, if any.
+pub fn mesh_override() -> Option<&'static std::path::Path> {
+    MESH.get().and_then(|m| m.as_deref())
+}
+
+/// Loads the scene at `dir` with the command line's `--mesh`, if any.
+pub fn load_scene(dir: &std::path::Path) -> Result<Scene> {
+    Ok(Scene::load_with_mesh(dir, mesh_override())?)
+}
+
 pub fn open_gpu(opts: &GpuOptions) -> Result<Arc<Gpu>> {
     Gpu::new(opts).context("opening the Vulkan device")
 }
@@ -495,7 +514,7 @@ fn find_lights(
     if !(voxel.is_finite() && voxel > 0.0) {
         anyhow::bail!("--voxel {voxel}: expected a positive length in metres");
     }
-    let mut s = Scene::load(dir)?;
+    let mut s = load_scene(dir)?;
     let gpu = open_gpu(opts)?;
     if views == 0 {
         anyhow::bail!("--views 0: expected at least one view");
@@ -548,7 +567,7 @@ fn find_lights(
 }
 
 fn scene_check(dir: &std::path::Path, quick: bool) -> Result<()> {
-    let s = Scene::load(dir)?;
+    let s = load_scene(dir)?;
     if !quick {
         s.check_images()?;
     }
@@ -652,7 +671,7 @@ fn print_coverage_warnings(coverage: &[scene::LightCoverage]) {
 }
 
 /// The bake parameters of a quality preset.
-fn quality_params(q: Quality) -> relit_engine::bake::BakeParams {
+pub fn quality_params(q: Quality) -> relit_engine::bake::BakeParams {
     match q {
         Quality::Preview => relit_engine::bake::BakeParams::preview(),
         Quality::Final => relit_engine::bake::BakeParams::final_quality(),
@@ -665,7 +684,7 @@ fn tools_dir() -> PathBuf {
 }
 
 /// The added lights `--lights` names (None: all), checked against the scene.
-fn bake_lights_arg(scene: &Scene, arg: &str, eval: bool) -> Result<Option<Vec<String>>> {
+pub fn bake_lights_arg(scene: &Scene, arg: &str, eval: bool) -> Result<Option<Vec<String>>> {
     let added = relit_engine::frame::added_lights(scene);
     Ok(match arg {
         "all" => None,
@@ -693,6 +712,34 @@ fn bake_lights_arg(scene: &Scene, arg: &str, eval: bool) -> Result<Option<Vec<St
     })
 }
 
+/// The cache and each stage of a bake: items, seconds and ray rate.
+pub fn print_stages(report: &relit_engine::bake::BakeReport) {
+    println!("cache: {}", report.cache.display());
+    for (stage, secs, rays, items) in &report.stages {
+        if *items == 0 {
+            println!("  {stage}: cached");
+        } else {
+            println!(
+                "  {stage}: {items} item(s) in {secs:.1} s{}",
+                if *rays > 0 {
+                    // Paths end early by Russian roulette: their count is the most they trace.
+                    let most = if stage == "surface cache" {
+                        "at most "
+                    } else {
+                        ""
+                    };
+                    format!(
+                        ", {most}{:.2} M rays/s",
+                        *rays as f64 / secs.max(1e-9) * 1e-6
+                    )
+                } else {
+                    String::new()
+                }
+            );
+        }
+    }
+}
+
 fn bake(
     dir: &std::path::Path,
     p: &relit_engine::bake::BakeParams,
@@ -700,7 +747,7 @@ fn bake(
     eval: bool,
     opts: &GpuOptions,
 ) -> Result<()> {
-    let scene = Scene::load(dir)?;
+    let scene = load_scene(dir)?;
     let p = &relit_engine::bake::BakeParams {
         lights: bake_lights_arg(&scene, lights, eval)?,
         ..p.clone()
@@ -743,30 +790,7 @@ fn bake(
     for (_, b) in &bars {
         b.finish();
     }
-    println!("cache: {}", report.cache.display());
-    for (stage, secs, rays, items) in &report.stages {
-        if *items == 0 {
-            println!("  {stage}: cached");
-        } else {
-            println!(
-                "  {stage}: {items} item(s) in {secs:.1} s{}",
-                if *rays > 0 {
-                    // Paths end early by Russian roulette: their count is the most they trace.
-                    let most = if stage == "surface cache" {
-                        "at most "
-                    } else {
-                        ""
-                    };
-                    format!(
-                        ", {most}{:.2} M rays/s",
-                        *rays as f64 / secs.max(1e-9) * 1e-6
-                    )
-                } else {
-                    String::new()
-                }
-            );
-        }
-    }
+    print_stages(&report);
     if !report.albedo_mesh {
         println!("albedo mesh and later stages wait for every view's source irradiance (bake the other slices)");
     }
@@ -792,6 +816,7 @@ fn bake(
 fn main() {
     let cli = Cli::parse();
     let opts = gpu_options(&cli);
+    MESH.set(cli.mesh.clone()).expect("set once");
     let res = match &cli.cmd {
         Cmd::Info => info(&opts),
         Cmd::Scene {
@@ -930,6 +955,9 @@ fn main() {
             },
             frame,
         ),
+        Cmd::Dataset(_) if cli.mesh.is_some() => Err(anyhow::anyhow!(
+            "--mesh names one scene's proxy; relit dataset makes every room's own"
+        )),
         Cmd::Dataset(a) => dataset::run(a, &opts),
         Cmd::Bake {
             scene,

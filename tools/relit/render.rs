@@ -315,7 +315,7 @@ pub fn render_batch(
     res: Option<(u32, u32)>,
     a: &FrameArgs,
 ) -> Result<()> {
-    let scene = Scene::load(dir)?;
+    let scene = crate::load_scene(dir)?;
     let jobs = batch_jobs(jobs)?;
     let mut cams = Vec::with_capacity(jobs.len());
     let mut lights = Vec::with_capacity(jobs.len());
@@ -360,7 +360,7 @@ pub fn render(
     leave_out: bool,
     a: &FrameArgs,
 ) -> Result<()> {
-    let scene = Scene::load(dir)?;
+    let scene = crate::load_scene(dir)?;
     let cam = resolve_camera(&scene, camera, res)?;
     let exclude = left_out(&scene, camera, leave_out)?;
     let light = lighting(&scene, preset)?;
@@ -385,7 +385,7 @@ pub fn fly(
     (fps, max_frames): (f32, u64),
     a: &FrameArgs,
 ) -> Result<()> {
-    let scene = Scene::load(dir)?;
+    let scene = crate::load_scene(dir)?;
     let cp = CameraPath::load(path)?;
     if !(fps > 0.0 && fps <= 240.0) {
         bail!("--fps {fps}: expected a value in (0, 240]");
@@ -585,7 +585,7 @@ pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> 
         keep_view,
         parts,
     } = *req;
-    let scene = Scene::load(dir)?;
+    let scene = crate::load_scene(dir)?;
     let cam = resolve_camera(&scene, camera, None)?;
     let light = lighting(&scene, preset)?;
     if parts && preset.is_some() {

@@ -696,7 +696,7 @@ pub fn view(opts: &GpuOptions, a: ViewArgs) -> Result<()> {
     let mut o = opts.clone();
     o.instance_extensions = present::surface_extensions(el.display_handle()?.as_raw())?;
     o.swapchain = true;
-    let scene = Scene::load(&a.scene)?;
+    let scene = crate::load_scene(&a.scene)?;
     let gpu = crate::open_gpu(&o)?;
     let player = match &a.play {
         Some(f) => Some(open_player(&gpu, &scene, f, &a.frame)?),

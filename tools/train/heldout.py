@@ -3,7 +3,7 @@ training or validation dataset uses, and rooms written by hand, at 256×192 with
 views, each with one added lamp of a saturated or strongly tinted colour, Mitsuba's truth for
 the test views under the original lighting and the lamp alone, and the bake users run.
 
-  python3 tools/train/heldout.py build OUT [--set heldout|validation|tiny] [--spp 64]
+  python3 tools/train/heldout.py build OUT [--set heldout|validation|tiny] [--spp 64] [--rooms A,B]
 
 Sets (fixed here, so that every report speaks of the same rooms):
 - heldout: only reports, never chooses. Six scenegen rooms (seeds 700000–700005, 32 views,
@@ -162,6 +162,8 @@ def main():
     b.add_argument("out")
     b.add_argument("--set", choices=sorted(SETS), default="heldout")
     b.add_argument("--spp", type=int, default=64)
+    b.add_argument("--rooms", help="comma-separated room names of the set, in this order "
+                                   "(default: every room of the set)")
     b.add_argument("--relit", default=os.path.join(ROOT, "target", "release", "relit"))
     b.add_argument("--scenegen", default=os.path.join(ROOT, "target", "release", "scenegen"))
     a = ap.parse_args()
@@ -173,6 +175,13 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     t0 = time.time()
     todo = SETS[a.set]
+    if a.rooms:
+        by_name = {r[0]: r for r in todo}
+        unknown = [n for n in a.rooms.split(",") if n not in by_name]
+        if unknown:
+            sys.exit(f"error: --rooms: {', '.join(unknown)} not in set {a.set} "
+                     f"({', '.join(by_name)})")
+        todo = [by_name[n] for n in a.rooms.split(",")]
     try:
         for k, (name, source, o) in enumerate(todo):
             build_room(a.out, name, source, o, a, bins, lambda m: print(m, flush=True))

@@ -11,7 +11,7 @@ use super::random::rand2;
 use super::surface_cache::{CacheLayout, GpuCacheLayout};
 use super::views::{facing_normal, GpuViews, ViewData};
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
+use crate::gpu::{bytes_of, Bind, Buffer, Gpu, Graph, Pipeline, RayScene};
 use crate::scene::Mesh;
 
 #[repr(C)]
@@ -47,17 +47,17 @@ impl AddedIrradiance {
     /// Records E_add of `view` for `light` into `out` (vec4 per pixel): direct light per pixel
     /// plus the light's surface cache `cache` (vec4 per texel of `layout`).
     #[allow(clippy::too_many_arguments)]
-    pub fn record(
+    pub fn record<'a>(
         &self,
-        cmd: vk::CommandBuffer,
-        mesh: &RayScene,
-        views: &GpuViews,
-        layout: &GpuCacheLayout,
-        cache: &Buffer,
+        g: &mut Graph<'a, '_>,
+        mesh: &'a RayScene,
+        views: &'a GpuViews,
+        layout: &'a GpuCacheLayout,
+        cache: &'a Buffer,
         view: u32,
         light: &GpuLight,
         p: AddedParams,
-        out: &Buffer,
+        out: &'a Buffer,
     ) -> Result<()> {
         let push = Push {
             view,
@@ -77,9 +77,10 @@ impl AddedIrradiance {
             ("Out", Bind::Buffer(out)),
         ];
         binds.extend([views.bind()]);
-        self.pipeline.dispatch(
-            cmd,
-            &binds,
+        g.pass(
+            "added irradiance",
+            &self.pipeline,
+            binds,
             bytes_of(&push),
             (views.width * views.height, 1, 1),
         )
@@ -97,8 +98,10 @@ impl AddedIrradiance {
         light: &GpuLight,
         p: AddedParams,
     ) -> Result<Map> {
-        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
-            self.record(cmd, mesh, views, layout, cache, view, light, p, out)
+        let gpu = &self.pipeline.gpu;
+        super::views::run_pixels(gpu, views, |cmd, out| {
+            let g = &mut Graph::new(gpu, cmd, None);
+            self.record(g, mesh, views, layout, cache, view, light, p, out)
         })
     }
 }

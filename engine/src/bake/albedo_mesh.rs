@@ -8,7 +8,7 @@ use glam::Vec3;
 
 use super::views::{GpuViews, ViewData};
 use crate::error::Result;
-use crate::gpu::{bytes_of, Bind, Buffer, Gpu, Pipeline, RayScene};
+use crate::gpu::{bytes_of, Bind, Buffer, Gpu, Graph, Pipeline, RayScene};
 use crate::scene::Light;
 
 #[repr(C)]
@@ -71,15 +71,22 @@ impl AlbedoMesh {
             pad: 0,
             e_src: [e_src.address as u32, (e_src.address >> 32) as u32],
         };
-        super::views::run_vertices(&self.pipeline.gpu, nverts, |cmd, out| {
+        let gpu = &self.pipeline.gpu;
+        super::views::run_vertices(gpu, nverts, |cmd, out| {
             let mut binds = vec![
                 ("Verts", Bind::Buffer(&mesh.positions)),
                 ("Out", Bind::Buffer(out)),
                 ("Lights", Bind::Buffer(&self.lights)),
             ];
             binds.extend([views.bind()]);
-            self.pipeline
-                .dispatch(cmd, &binds, bytes_of(&push), (nverts, 1, 1))
+            let g = &mut Graph::new(gpu, cmd, None);
+            g.pass(
+                "albedo mesh",
+                &self.pipeline,
+                binds,
+                bytes_of(&push),
+                (nverts, 1, 1),
+            )
         })
     }
 }

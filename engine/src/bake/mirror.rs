@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use super::views::{facing_normal, GpuViews, ViewData};
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
+use crate::gpu::{bytes_of, Bind, Buffer, Gpu, Graph, Pipeline, RayScene};
 use crate::scene::Mesh;
 
 #[repr(C)]
@@ -35,13 +35,13 @@ impl Mirror {
     }
 
     /// Records M_src of `view` into `out` (vec4 per pixel: rgb, w = 1 where a view was found).
-    pub fn record(
+    pub fn record<'a>(
         &self,
-        cmd: vk::CommandBuffer,
-        mesh: &RayScene,
-        views: &GpuViews,
+        g: &mut Graph<'a, '_>,
+        mesh: &'a RayScene,
+        views: &'a GpuViews,
         view: u32,
-        out: &Buffer,
+        out: &'a Buffer,
     ) -> Result<()> {
         let push = Push {
             view,
@@ -54,17 +54,19 @@ impl Mirror {
             ("Out", Bind::Buffer(out)),
         ];
         binds.extend([views.bind()]);
-        self.pipeline.dispatch(
-            cmd,
-            &binds,
+        g.pass(
+            "mirror",
+            &self.pipeline,
+            binds,
             bytes_of(&push),
             (views.width * views.height, 1, 1),
         )
     }
 
     pub fn run(&self, mesh: &RayScene, views: &GpuViews, view: u32) -> Result<Vec<[f32; 4]>> {
-        super::views::run_pixels(&self.pipeline.gpu, views, |cmd, out| {
-            self.record(cmd, mesh, views, view, out)
+        let gpu = &self.pipeline.gpu;
+        super::views::run_pixels(gpu, views, |cmd, out| {
+            self.record(&mut Graph::new(gpu, cmd, None), mesh, views, view, out)
         })
     }
 }

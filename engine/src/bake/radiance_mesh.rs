@@ -15,7 +15,7 @@ use super::source_irradiance::{lights_buffer, near_light, SourceIrradiance};
 use super::views::{GpuViews, ViewData};
 use super::GpuLight;
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Graph, Pipeline, RayScene};
 use crate::scene::meshproc::vertex_normals;
 use crate::scene::{Light, Mesh};
 
@@ -62,15 +62,22 @@ impl RadianceMesh {
             nviews: views.count,
             nlights: self.nlights,
         };
-        super::views::run_vertices(&self.pipeline.gpu, nverts, |cmd, out| {
+        let gpu = &self.pipeline.gpu;
+        super::views::run_vertices(gpu, nverts, |cmd, out| {
             let mut binds = vec![
                 ("Verts", Bind::Buffer(&mesh.positions)),
                 ("Lights", Bind::Buffer(&self.lights)),
                 ("Out", Bind::Buffer(out)),
             ];
             binds.extend([views.bind()]);
-            self.pipeline
-                .dispatch(cmd, &binds, bytes_of(&push), (nverts, 1, 1))
+            let g = &mut Graph::new(gpu, cmd, None);
+            g.pass(
+                "radiance mesh",
+                &self.pipeline,
+                binds,
+                bytes_of(&push),
+                (nverts, 1, 1),
+            )
         })
     }
 }

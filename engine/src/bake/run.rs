@@ -510,8 +510,10 @@ impl Stages<'_> {
             if !file.exists() {
                 let mut res = Ok(());
                 let (s, out) = (&self.s, &self.out);
-                self.gpu
-                    .submit(|cmd| res = mirror.record(cmd, &s.mesh, &s.views, i as u32, out))?;
+                self.gpu.submit(|cmd| {
+                    let g = &mut Graph::new(self.gpu, cmd, None);
+                    res = mirror.record(g, &s.mesh, &s.views, i as u32, out)
+                })?;
                 res?;
                 BakeCache::write_map(&file, w, h, &self.read_out()?)?;
                 done += 1;

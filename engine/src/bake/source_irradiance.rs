@@ -264,7 +264,8 @@ impl SourceIrradiance {
             count,
             parts,
         };
-        super::views::run_vertices(&self.pipeline.gpu, count, |cmd, out| {
+        let gpu = &self.pipeline.gpu;
+        super::views::run_vertices(gpu, count, |cmd, out| {
             let mut binds = vec![
                 ("tlas", Bind::Accel(mesh.tlas.raw)),
                 ("Out", Bind::Buffer(out)),
@@ -275,8 +276,14 @@ impl SourceIrradiance {
                 ("Normals", Bind::Buffer(normals)),
             ];
             binds.extend([views.bind()]);
-            self.vertices
-                .dispatch(cmd, &binds, bytes_of(&push), (count, 1, 1))
+            let g = &mut Graph::new(gpu, cmd, None);
+            g.pass(
+                "source irradiance (vertices)",
+                &self.vertices,
+                binds,
+                bytes_of(&push),
+                (count, 1, 1),
+            )
         })
     }
 }

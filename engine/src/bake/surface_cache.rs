@@ -13,7 +13,7 @@ use glam::Vec3;
 use super::added_light::{AddedParams, GpuLight, RR_START};
 use super::random::{cosine_dir, rand2};
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Graph, Pipeline, RayScene};
 use crate::scene::Mesh;
 
 /// Faces meeting at a vertex at more than this angle (cos 45°) get texels of their own: a room's
@@ -206,16 +206,16 @@ impl SurfaceCache {
 
     /// Records the tracing of `texels` into `out`, each texel's result at its own index.
     #[allow(clippy::too_many_arguments)]
-    pub fn record(
+    pub fn record<'a>(
         &self,
-        cmd: vk::CommandBuffer,
-        mesh: &RayScene,
-        layout: &GpuCacheLayout,
-        albedo: &Buffer,
+        g: &mut Graph<'a, '_>,
+        mesh: &'a RayScene,
+        layout: &'a GpuCacheLayout,
+        albedo: &'a Buffer,
         light: &GpuLight,
         p: AddedParams,
-        texels: Texels,
-        out: &Buffer,
+        texels: Texels<'a>,
+        out: &'a Buffer,
     ) -> Result<()> {
         let (first, count, list) = match texels {
             Texels::Range { first, count } => (first, count, None),
@@ -242,8 +242,13 @@ impl SurfaceCache {
             // Unread without a list; any storage buffer fills the binding.
             ("List", Bind::Buffer(list.unwrap_or(&layout.pos))),
         ];
-        self.pipeline
-            .dispatch(cmd, &binds, bytes_of(&push), (count, 1, 1))
+        g.pass(
+            "surface cache",
+            &self.pipeline,
+            binds,
+            bytes_of(&push),
+            (count, 1, 1),
+        )
     }
 
     /// Traces the whole cache of `light` (unfiltered), chunk by chunk, reporting texels done.
@@ -271,7 +276,7 @@ impl SurfaceCache {
             let mut res = Ok(());
             gpu.submit(|cmd| {
                 res = self.record(
-                    cmd,
+                    &mut Graph::new(gpu, cmd, None),
                     mesh,
                     layout,
                     albedo,

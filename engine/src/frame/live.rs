@@ -13,7 +13,7 @@ use glam::Vec3;
 use crate::bake::surface_cache::{CacheLayout, GpuCacheLayout, SurfaceCache, Texels};
 use crate::bake::{AddedParams, GpuLight};
 use crate::error::{Error, Result};
-use crate::gpu::{vk, Buffer, Gpu, MemoryLocation, RayScene};
+use crate::gpu::{vk, Buffer, Gpu, Graph, MemoryLocation, RayScene};
 use crate::scene::Mesh;
 
 /// At most this many lights are live at once (each costs shadow rays at every pixel).
@@ -292,7 +292,7 @@ impl LiveLights {
             let mut res = Ok(());
             self.gpu.submit(|cmd| {
                 res = self.tracer.record(
-                    cmd,
+                    &mut Graph::new(&self.gpu, cmd, None),
                     mesh,
                     &self.glayout,
                     albedo,

@@ -408,7 +408,7 @@ fn read_images_bin(file: &Path) -> Result<Vec<RawImage>> {
     Ok(out)
 }
 
-pub(crate) fn load(dir: &Path) -> Result<Scene> {
+pub(crate) fn load(dir: &Path, mesh: Option<&Path>) -> Result<Scene> {
     let (model, enc) = model_dir(dir).ok_or_else(|| {
         Error::input(
             dir,
@@ -436,7 +436,14 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
     for im in images {
         views.push(view(dir, &img_file, &cams, im)?);
     }
-    super::capture_scene(dir, SceneFormat::Colmap, views, MESH_CANDIDATES, &img_file)
+    super::capture_scene(
+        dir,
+        SceneFormat::Colmap,
+        views,
+        mesh,
+        MESH_CANDIDATES,
+        &img_file,
+    )
 }
 
 fn view(dir: &Path, file: &Path, cams: &HashMap<u32, Intrinsics>, im: RawImage) -> Result<View> {

@@ -341,7 +341,7 @@ pub(crate) fn parse<T: for<'a> Deserialize<'a>>(file: &Path) -> Result<T> {
     serde_json::from_str(&text).map_err(|e| Error::input(file, format!("{e}")))
 }
 
-pub(crate) fn load(dir: &Path) -> Result<Scene> {
+pub(crate) fn load(dir: &Path, mesh: Option<&Path>) -> Result<Scene> {
     let file = dir.join(SCENE_FILE);
     let doc: SceneDoc = parse(&file)?;
     if doc.version != 1 {
@@ -358,7 +358,7 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
             camera: v.camera.to_camera(&file, &v.name)?,
         });
     }
-    let mesh_path = dir.join(&doc.mesh);
+    let mesh_path = mesh.map_or_else(|| dir.join(&doc.mesh), Path::to_path_buf);
     let scene = Scene {
         root: dir.to_path_buf(),
         format: SceneFormat::Relit,

@@ -283,8 +283,14 @@ pub struct Scene {
 impl Scene {
     /// Loads a scene directory in whichever format it holds (or a `scene.json` path).
     pub fn load(path: &Path) -> Result<Scene> {
+        Scene::load_with_mesh(path, None)
+    }
+
+    /// [`Scene::load`] with `mesh`, when given, as the proxy instead of the one the scene
+    /// names or keeps beside its views (`relit --mesh`: a mesh made by another tool).
+    pub fn load_with_mesh(path: &Path, mesh: Option<&Path>) -> Result<Scene> {
         if path.is_file() && path.file_name().is_some_and(|n| n == SCENE_FILE) {
-            return json::load(path.parent().unwrap_or(Path::new(".")));
+            return json::load(path.parent().unwrap_or(Path::new(".")), mesh);
         }
         if !path.is_dir() {
             return Err(Error::input(
@@ -293,10 +299,10 @@ impl Scene {
             ));
         }
         match detect(path) {
-            Some(SceneFormat::Relit) => json::load(path),
-            Some(SceneFormat::Colmap) => colmap::load(path),
-            Some(SceneFormat::Sibr) => sibr::load(path),
-            Some(SceneFormat::Transforms) => transforms::load(path),
+            Some(SceneFormat::Relit) => json::load(path, mesh),
+            Some(SceneFormat::Colmap) => colmap::load(path, mesh),
+            Some(SceneFormat::Sibr) => sibr::load(path, mesh),
+            Some(SceneFormat::Transforms) => transforms::load(path, mesh),
             None => Err(Error::input(
                 path,
                 format!(
@@ -537,16 +543,20 @@ pub(crate) fn read_text(path: &Path) -> Result<String> {
     String::from_utf8(bytes).map_err(|_| Error::input(path, "file is not valid UTF-8 text"))
 }
 
-/// A COLMAP or SIBR capture from its views: the mesh beside them, lights and presets from the
+/// A capture from its views: `mesh` or else the mesh beside them, lights and presets from the
 /// `lights.json` sidecar, validated against `file` (the camera file, named in errors).
 pub(crate) fn capture_scene(
     dir: &Path,
     format: SceneFormat,
     views: Vec<View>,
+    mesh: Option<&Path>,
     mesh_candidates: &[&str],
     file: &Path,
 ) -> Result<Scene> {
-    let mesh_path = find_mesh(dir, mesh_candidates)?;
+    let mesh_path = match mesh {
+        Some(m) => m.to_path_buf(),
+        None => find_mesh(dir, mesh_candidates)?,
+    };
     let (lights, presets) = json::load_sidecar(dir)?;
     let scene = Scene {
         root: dir.to_path_buf(),

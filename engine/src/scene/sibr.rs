@@ -83,7 +83,7 @@ fn image_list(dir: &Path) -> Result<Vec<ImageEntry>> {
     Ok(files.into_iter().map(|p| (p, None)).collect())
 }
 
-pub(crate) fn load(dir: &Path) -> Result<Scene> {
+pub(crate) fn load(dir: &Path, mesh: Option<&Path>) -> Result<Scene> {
     let file = dir.join("cameras/bundle.out");
     let text = super::read_text(&file)?;
     let mut lines = text
@@ -176,7 +176,7 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
             },
         });
     }
-    super::capture_scene(dir, SceneFormat::Sibr, views, MESH_CANDIDATES, &file)
+    super::capture_scene(dir, SceneFormat::Sibr, views, mesh, MESH_CANDIDATES, &file)
 }
 
 /// Writes `cameras/bundle.out` and `scene_metadata.txt` for `scene` (square pixels, principal

@@ -162,7 +162,7 @@ fn image_path(dir: &Path, rel: &str) -> PathBuf {
     p
 }
 
-pub(crate) fn load(dir: &Path) -> Result<Scene> {
+pub(crate) fn load(dir: &Path, mesh: Option<&Path>) -> Result<Scene> {
     let file = dir.join(FILE);
     let doc: Value = super::json::parse(&file)?;
     let top = doc
@@ -203,6 +203,7 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
     let mut candidates: Vec<&str> = MESH_CANDIDATES.to_vec();
     let ply = top.get("ply_file_path").and_then(Value::as_str);
     match ply {
+        _ if mesh.is_some() => {}
         Some(ply) if has_faces(&dir.join(ply)) => candidates.insert(0, ply),
         Some(ply) if super::find_mesh(dir, &candidates).is_err() => {
             return Err(Error::input(&file, format!(
@@ -212,7 +213,14 @@ pub(crate) fn load(dir: &Path) -> Result<Scene> {
         }
         _ => {}
     }
-    super::capture_scene(dir, SceneFormat::Transforms, views, &candidates, &file)
+    super::capture_scene(
+        dir,
+        SceneFormat::Transforms,
+        views,
+        mesh,
+        &candidates,
+        &file,
+    )
 }
 
 /// Whether a PLY declares faces (nerfstudio's `ply_file_path` is often a sparse point cloud,

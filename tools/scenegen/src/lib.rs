@@ -142,9 +142,6 @@ pub fn write_room(dir: &Path, room: &Room, proxy: &ProxyParams) -> Result<Scene>
 /// Generates and writes one scene.
 pub fn generate(dir: &Path, seed: u64, opts: &RoomOptions) -> Result<Scene> {
     let room = room::generate(seed, opts);
-    let proxy = ProxyParams {
-        seed,
-        ..Default::default()
-    };
+    let proxy = ProxyParams::scaled(seed, opts.proxy_error);
     write_room(dir, &room, &proxy)
 }

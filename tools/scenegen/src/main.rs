@@ -41,6 +41,9 @@ struct SceneArgs {
     /// Tints of the extra lights: mild (near white) or mixed (half saturated).
     #[arg(long, value_enum, default_value = "mild")]
     lamp_colours: relit_scenegen::room::LampColours,
+    /// Proxy error as a fraction of the default MVS-like degradation (0: the true surfaces).
+    #[arg(long, default_value_t = 1.0)]
+    proxy_error: f32,
 }
 
 impl SceneArgs {
@@ -53,6 +56,7 @@ impl SceneArgs {
             test_views: self.test_views,
             light_views: self.light_views,
             lamp_colours: self.lamp_colours,
+            proxy_error: self.proxy_error,
         }
     }
 }

@@ -47,6 +47,22 @@ impl Default for ProxyParams {
 }
 
 impl ProxyParams {
+    /// The default degradation scaled by `f` (clamped to 0..=1): noise, bumps, rounding, lost
+    /// thin parts and holes shrink together; the remeshing edge stays. 0 keeps every surface.
+    pub fn scaled(seed: u64, f: f32) -> Self {
+        let f = f.clamp(0.0, 1.0);
+        let d = ProxyParams::default();
+        ProxyParams {
+            seed,
+            noise_amp: d.noise_amp * f,
+            wall_bump_amp: d.wall_bump_amp * f,
+            corner_radius: d.corner_radius * f,
+            thin: d.thin * f,
+            hole_prob: d.hole_prob * f,
+            ..d
+        }
+    }
+
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::json!({
             "seed": self.seed, "edge_m": self.edge, "noise_amp_m": self.noise_amp,

@@ -65,6 +65,10 @@ pub struct RoomOptions {
     pub light_views: usize,
     /// Tints of the added lights.
     pub lamp_colours: LampColours,
+    /// How far the proxy is from the true geometry, as a fraction of the default MVS-like
+    /// degradation ([`crate::proxy::ProxyParams::scaled`]): 1 (default) as before, 0 the true
+    /// surfaces remeshed at the proxy's edge length, as in rooms written by hand.
+    pub proxy_error: f32,
 }
 
 /// How the added lights are tinted.
@@ -98,6 +102,7 @@ impl Default for RoomOptions {
             test_views: 8,
             light_views: 3,
             lamp_colours: LampColours::Mild,
+            proxy_error: 1.0,
         }
     }
 }
