@@ -105,17 +105,34 @@ fn lights_conditions_and_cameras_are_consistent() {
     }
 }
 
-#[test]
-fn proxy_loses_thin_parts_rounds_corners_and_stays_near_the_surface() {
-    let p = ProxyParams::default();
-    let mut rng = Rng::new(1);
-    let obj = |prim, surface| Object {
+/// An object of the room, not part of its shell.
+fn obj(prim: Prim, surface: Surface) -> Object {
+    Object {
         name: "o".into(),
         prim,
         material: "m".into(),
         surface,
         shell: false,
+    }
+}
+
+/// A 2.5 × 4 m textureless wall (the kind of surface MVS leaves holes in).
+fn textureless_wall() -> Object {
+    let prim = Prim::Quad {
+        corner: Vec3::ZERO,
+        u: Vec3::Y * 2.5,
+        v: Vec3::Z * 4.0,
     };
+    Object {
+        shell: true,
+        ..obj(prim, Surface::Textureless)
+    }
+}
+
+#[test]
+fn proxy_loses_thin_parts_rounds_corners_and_stays_near_the_surface() {
+    let p = ProxyParams::default();
+    let mut rng = Rng::new(1);
     // A 1.5 cm leg is lost.
     let leg = obj(
         Prim::Box {
@@ -157,17 +174,7 @@ fn proxy_loses_thin_parts_rounds_corners_and_stays_near_the_surface() {
         hole_prob: 1.0,
         ..p.clone()
     };
-    let wall = Object {
-        shell: true,
-        ..obj(
-            Prim::Quad {
-                corner: Vec3::ZERO,
-                u: Vec3::Y * 2.5,
-                v: Vec3::Z * 4.0,
-            },
-            Surface::Textureless,
-        )
-    };
+    let wall = textureless_wall();
     let full = tessellate(&wall.prim, p.edge).triangles.len();
     let holed = degrade(&wall, &holes, &mut rng).triangles.len();
     assert!(holed < full, "no hole: {holed} of {full}");
@@ -190,13 +197,6 @@ fn proxy_error_scales_the_degradation_and_zero_keeps_the_true_surfaces() {
     assert_eq!(ProxyParams::scaled(3, 7.0).noise_amp, d.noise_amp);
     let exact = ProxyParams::scaled(3, 0.0);
     let mut rng = Rng::new(1);
-    let obj = |prim, surface| Object {
-        name: "o".into(),
-        prim,
-        material: "m".into(),
-        surface,
-        shell: false,
-    };
     // A 1.5 cm leg is kept, and a box's vertices lie on its faces (no noise, no rounding).
     let leg = Prim::Box {
         lo: Vec3::ZERO,
@@ -220,17 +220,7 @@ fn proxy_error_scales_the_degradation_and_zero_keeps_the_true_surfaces() {
         );
     }
     // A textureless wall keeps every triangle.
-    let wall = Object {
-        shell: true,
-        ..obj(
-            Prim::Quad {
-                corner: Vec3::ZERO,
-                u: Vec3::Y * 2.5,
-                v: Vec3::Z * 4.0,
-            },
-            Surface::Textureless,
-        )
-    };
+    let wall = textureless_wall();
     let full = tessellate(&wall.prim, exact.edge).triangles.len();
     assert_eq!(degrade(&wall, &exact, &mut rng).triangles.len(), full);
 }
