@@ -729,6 +729,7 @@ fn bake_scene(name: &str) -> std::path::PathBuf {
         light_views: 0,
         lamp_colours: Default::default(),
         proxy_error: 1.0,
+        finishes: Default::default(),
     };
     // A proxy three times coarser than scenegen's (~11k triangles, not ~100k): the bake's cost
     // is mostly its surface cache, whose texels follow the mesh.
@@ -977,6 +978,7 @@ fn bake_accuracy_against_mitsuba_ground_truth() {
         lamp_colours: Default::default(),
         light_views: 3,
         proxy_error: 1.0,
+        finishes: Default::default(),
     };
     relit_scenegen::generate(&dir, 12, &opts).unwrap();
     common::render_ground_truth(&dir, &["--spp", "256"]);

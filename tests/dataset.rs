@@ -94,6 +94,14 @@ fn dataset_builds_resumes_and_its_samples_mix_any_lighting_as_the_engine_does() 
         !good && text.contains("scene_01000") && text.contains("raw targets"),
         "{text}"
     );
+    // So would denoised photographs.
+    let mut clean = args.clone();
+    clean.push("--denoise-photos");
+    let (good, text) = relit(&clean);
+    assert!(
+        !good && text.contains("raw photographs") && text.contains("denoised photographs"),
+        "{text}"
+    );
 
     // The trainer's assembly of a lighting equals the engine's frame under that lighting, on
     // a novel camera and on an input view (left out of its own inputs in both).

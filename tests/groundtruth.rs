@@ -21,6 +21,7 @@ fn mitsuba_depth_matches_engine_raster_of_the_true_mesh() {
         light_views: 0,
         lamp_colours: Default::default(),
         proxy_error: 1.0,
+        finishes: Default::default(),
     };
     relit_scenegen::generate(&dir, 11, &opts).unwrap();
     common::render_ground_truth(&dir, &["--only", "aov"]);

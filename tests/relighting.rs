@@ -35,6 +35,7 @@ fn scene_few_views_see_the_lights() -> std::path::PathBuf {
         light_views: 0,
         lamp_colours: Default::default(),
         proxy_error: 1.0,
+        finishes: Default::default(),
     };
     relit_scenegen::generate(&dir, 12, &opts).unwrap();
     common::render_ground_truth(&dir, &["--spp", "128"]);

@@ -19,6 +19,7 @@ fn small() -> RoomOptions {
         light_views: 3,
         lamp_colours: Default::default(),
         proxy_error: 1.0,
+        finishes: Default::default(),
     }
 }
 
@@ -461,5 +462,77 @@ fn mixed_lamp_colours_saturate_some_lamps_and_change_nothing_else() {
     assert!(
         (total / 4..=3 * total / 4).contains(&saturated),
         "{saturated} of {total} lamps saturated"
+    );
+}
+
+/// `Finishes::Varied` keeps the classic room of the seed (every object and light) and adds what
+/// hand_room2 has: walls of their own colours (some saturated), a near-mirror and a lacquered
+/// cabinet, marked glossy so the proxy degrades them as MVS would.
+#[test]
+fn varied_finishes_add_coloured_walls_a_mirror_and_a_cabinet_and_change_nothing_else() {
+    let (mut mirrors, mut cabinets, mut saturated) = (0, 0, 0);
+    for seed in 1..=8 {
+        let classic = room::generate(seed, &small());
+        let varied = room::generate(
+            seed,
+            &RoomOptions {
+                finishes: room::Finishes::Varied,
+                ..small()
+            },
+        );
+        assert_eq!(
+            format!("{:?}", classic.lights),
+            format!("{:?}", varied.lights)
+        );
+        for o in &classic.objects {
+            let v = varied.objects.iter().find(|v| v.name == o.name).unwrap();
+            assert_eq!(
+                format!("{:?}", o.prim),
+                format!("{:?}", v.prim),
+                "{}",
+                o.name
+            );
+            assert_eq!(
+                o.name.starts_with("wall_"),
+                o.material != v.material,
+                "{}",
+                o.name
+            );
+        }
+        let walls: std::collections::BTreeSet<_> = varied
+            .objects
+            .iter()
+            .filter(|o| o.name.starts_with("wall_"))
+            .map(|o| o.material.clone())
+            .collect();
+        assert_eq!(walls.len(), 4, "seed {seed}: one material per wall");
+        for w in &walls {
+            let a = varied.materials[w].doc.albedo;
+            let max = a.iter().cloned().fold(0.0, f32::max);
+            saturated += a.iter().any(|&c| c < 0.5 * max) as usize;
+        }
+        for o in varied.objects.iter().skip(classic.objects.len()) {
+            let m = &varied.materials[&o.material].doc;
+            assert_eq!(o.surface, Surface::Glossy, "{}", o.name);
+            match o.name.as_str() {
+                "mirror" => {
+                    assert!(m.kind == "conductor" && m.roughness <= 0.05, "{m:?}");
+                    mirrors += 1;
+                }
+                "cabinet" => {
+                    assert!(m.kind == "plastic" && m.roughness <= 0.1, "{m:?}");
+                    cabinets += 1;
+                }
+                n => panic!("seed {seed}: unexpected object {n}"),
+            }
+        }
+    }
+    assert!(
+        mirrors >= 6 && cabinets >= 6,
+        "{mirrors} mirrors, {cabinets} cabinets"
+    );
+    assert!(
+        (6..=26).contains(&saturated),
+        "{saturated} of 32 walls saturated"
     );
 }

@@ -14,14 +14,21 @@ For every camera (capture views and test views) and lighting condition of a scen
 
 and the input photographs images/<view>.exr = the total radiance under the original lighting.
 
-Usage: render.py SCENE_DIR [--spp N] [--only inputs|aov|all] [--views a,b] [--conditions a,b]
-                 [--denoise]
+Usage: render.py SCENE_DIR [--spp N] [--only inputs|aov|all|photos] [--views a,b]
+                 [--conditions a,b] [--denoise] [--denoise-photos]
 
 --denoise runs Intel Open Image Denoise (pyoidn) on the targets (total and diffuse, guided by the
 albedo and normal AOVs; glossy stays their difference). Measured on a validation scene (4 test
 views at 128x96, a lamp's condition, against 1024 spp, in the trainer's tonemapped space): 64 spp
 + OIDN gives the glossy part 37.5 dB on glossy pixels for 6.8 s, 256 spp alone 38.2 dB for 22.9 s,
 64 spp alone 33.4 dB.
+
+--denoise-photos denoises the input photographs the same way (their own albedo and normal AOVs):
+a camera integrates every light path, so its photos have none of the path tracer's fireflies,
+which caustics off near-mirrors and glossy floors scatter over a 64 spp image by the hundred
+and which the ratio composite and the network carry into every relit frame. `--only photos`
+denoises the photographs of a room rendered without it, in place (once: gt/.photos-denoised
+records it); its bake must then be redone (the bake cache is keyed by the photos).
 """
 
 import argparse
@@ -315,10 +322,56 @@ def denoiser(gt):
     return run
 
 
+PHOTOS_DENOISED = ".photos-denoised"
+
+
+def render_aovs(s_dir, doc, scene_path, gt, cams):
+    """gt/aov/<view>.{albedo,normal,depth}.exr of `cams` at 1 spp."""
+    os.makedirs(os.path.join(gt, "aov"), exist_ok=True)
+    s = mitsuba_scene(s_dir, doc, scene_path, set(), cams, 1, aov=True)
+    integ = mi.load_dict({"type": "aov", "aovs": "a:albedo,n:sh_normal,d:depth"})
+    for i, (name, cam) in enumerate(cams):
+        img = np.array(mi.render(s, integrator=integ, sensor=i, spp=1))
+        w, h = cam["width"], cam["height"]
+        # Mitsuba's depth is the distance along the unit ray; Relit stores camera z.
+        xs = (np.arange(w) + 0.5 - cam["cx"]) / cam["fx"]
+        ys = (np.arange(h) + 0.5 - cam["cy"]) / cam["fy"]
+        norm = np.sqrt(xs[None, :] ** 2 + ys[:, None] ** 2 + 1.0)
+        write_exr(os.path.join(gt, "aov", f"{name}.albedo.exr"), img[:, :, 0:3])
+        write_exr(os.path.join(gt, "aov", f"{name}.normal.exr"), img[:, :, 3:6])
+        z = np.where(img[:, :, 6] > 0, img[:, :, 6] / norm + NEAR_CLIP, 0.0)
+        write_exr(os.path.join(gt, "aov", f"{name}.depth.exr"), z[:, :, None])
+
+
+def denoise_photos_in_place(scene_dir, log=print):
+    """`--only photos`: denoises the input photographs of a room rendered without
+    --denoise-photos (their AOVs rendered first where missing); a no-op the second time."""
+    scene_path, doc = load_description(scene_dir)
+    gt = os.path.join(scene_dir, doc["synthetic"]["ground_truth"])
+    if os.path.exists(os.path.join(gt, PHOTOS_DENOISED)):
+        log(f"{scene_dir}: photographs already denoised")
+        return
+    inputs = {v["name"]: os.path.join(scene_dir, v["image"]) for v in doc["views"]}
+    cams = [c for c in views_of(doc, scene_path) if c[0] in inputs]
+    missing = [c for c in cams if not os.path.exists(os.path.join(gt, "aov", f"{c[0]}.normal.exr"))]
+    if missing:
+        render_aovs(scene_dir, doc, scene_path, gt, missing)
+    dn = denoiser(gt)
+    for name, _ in cams:
+        write_exr(inputs[name], dn(name, read_exr(inputs[name])))
+    open(os.path.join(gt, PHOTOS_DENOISED), "w").close()
+    log(f"{scene_dir}: {len(cams)} photographs denoised")
+
+
 def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed=0, log=print,
-               denoise=False):
+               denoise=False, denoise_photos=False):
     """Renders the ground truth. With `denoise`, the targets (total and diffuse; glossy is their
-    difference) are denoised with OIDN; the input photographs and mirror images are not."""
+    difference) are denoised with OIDN; with `denoise_photos`, the input photographs; the mirror
+    images never are."""
+    if only == "photos":
+        t0 = time.time()
+        denoise_photos_in_place(scene_dir, log)
+        return time.time() - t0
     scene_path, doc = load_description(scene_dir)
     syn = doc["synthetic"]
     gt = os.path.join(scene_dir, syn["ground_truth"])
@@ -333,22 +386,11 @@ def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed
     if conditions:
         conds = [c for c in conds if c["name"] in conditions]
     t0 = time.time()
-    if only in ("all", "aov"):
-        os.makedirs(os.path.join(gt, "aov"), exist_ok=True)
-        s = mitsuba_scene(scene_dir, doc, scene_path, set(), cams, 1, aov=True)
-        integ = mi.load_dict({"type": "aov", "aovs": "a:albedo,n:sh_normal,d:depth"})
-        for i, (name, cam) in enumerate(cams):
-            img = np.array(mi.render(s, integrator=integ, sensor=i, spp=1))
-            w, h = cam["width"], cam["height"]
-            # Mitsuba's depth is the distance along the unit ray; Relit stores camera z.
-            xs = (np.arange(w) + 0.5 - cam["cx"]) / cam["fx"]
-            ys = (np.arange(h) + 0.5 - cam["cy"]) / cam["fy"]
-            norm = np.sqrt(xs[None, :] ** 2 + ys[:, None] ** 2 + 1.0)
-            write_exr(os.path.join(gt, "aov", f"{name}.albedo.exr"), img[:, :, 0:3])
-            write_exr(os.path.join(gt, "aov", f"{name}.normal.exr"), img[:, :, 3:6])
-            z = np.where(img[:, :, 6] > 0, img[:, :, 6] / norm + NEAR_CLIP, 0.0)
-            write_exr(os.path.join(gt, "aov", f"{name}.depth.exr"), z[:, :, None])
+    if only in ("all", "aov") or (only == "inputs" and denoise_photos):
+        render_aovs(scene_dir, doc, scene_path, gt, cams)
     dn = denoiser(gt) if denoise and only == "all" else None
+    photo_dn = denoiser(gt) if denoise_photos else None
+    photos = 0
     if only in ("all", "inputs"):
         diffuse = mi.load_dict({"type": "diffuse_first_bounce", "max_depth": MAX_DEPTH})
         mirror = mi.load_dict({"type": "mirror_first_bounce", "max_depth": MAX_DEPTH})
@@ -361,7 +403,8 @@ def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed
                 total = np.array(mi.render(s, integrator=path, sensor=i, spp=spp, seed=seed + 2 * i))
                 if name in inputs and c["name"] == "original":
                     os.makedirs(os.path.dirname(inputs[name]), exist_ok=True)
-                    write_exr(inputs[name], total)
+                    write_exr(inputs[name], photo_dn(name, total) if photo_dn else total)
+                    photos += 1
                 if only == "inputs":
                     continue
                 diff = np.array(mi.render(s, integrator=diffuse, sensor=i, spp=spp, seed=seed + 2 * i + 1))
@@ -374,6 +417,8 @@ def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed
                     m = np.array(mi.render(s, integrator=mirror, sensor=i, spp=spp, seed=seed + 7919 + i))
                     write_exr(os.path.join(out, f"{name}.mirror.exr"), m)
             log(f"  {c['name']}: {len(cams)} views ({time.time() - t0:.1f} s)")
+    if photo_dn and photos == len(inputs):
+        open(os.path.join(gt, PHOTOS_DENOISED), "w").close()
     return time.time() - t0
 
 
@@ -381,18 +426,20 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scene")
     ap.add_argument("--spp", type=int, default=128)
-    ap.add_argument("--only", choices=["all", "inputs", "aov"], default="all")
+    ap.add_argument("--only", choices=["all", "inputs", "aov", "photos"], default="all")
     ap.add_argument("--views", help="comma-separated view names")
     ap.add_argument("--conditions", help="comma-separated condition names")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--denoise", action="store_true",
                     help="denoise the targets with Intel Open Image Denoise (pyoidn)")
+    ap.add_argument("--denoise-photos", action="store_true",
+                    help="denoise the input photographs too (a camera's photo has no fireflies)")
     a = ap.parse_args()
     try:
         t = render_all(a.scene, a.spp, a.only,
                        a.views.split(",") if a.views else None,
                        a.conditions.split(",") if a.conditions else None, a.seed,
-                       denoise=a.denoise)
+                       denoise=a.denoise, denoise_photos=a.denoise_photos)
     except SceneError as e:
         print(f"error: {e}", file=sys.stderr)
         sys.exit(1)

@@ -110,6 +110,33 @@ class GroundTruth(unittest.TestCase):
         # glossy stays the difference of the denoised total and diffuse (half precision).
         np.testing.assert_allclose(dn[1] + dn[2], dn[0], rtol=2e-3, atol=2e-3)
 
+    def test_denoised_photos_are_closer_to_many_samples_and_denoised_once(self):
+        d = make_scene(self.tmp, seed=9)
+        _, doc = render.load_description(d)
+        photos = [os.path.join(d, v["image"]) for v in doc["views"]]
+        quiet = dict(only="inputs", log=lambda *_: None)
+        read = lambda: [render.read_exr(p) for p in photos]
+        render.render_all(d, spp=1024, seed=11, **quiet)
+        ref = read()
+        render.render_all(d, spp=4, **quiet)
+        raw = read()
+        render.render_all(d, only="photos", log=lambda *_: None)
+        dn = read()
+        tm = samples.tonemap
+        err = lambda a, b: float(np.sqrt(np.mean((tm(a) - tm(b)) ** 2)))
+        for r, a, b in zip(ref, raw, dn):
+            self.assertLess(err(b, r), 0.8 * err(a, r))
+        # Once: a second call leaves the photographs as they are.
+        render.render_all(d, only="photos", log=lambda *_: None)
+        for a, b in zip(dn, read()):
+            np.testing.assert_array_equal(a, b)
+        # Rendering with --denoise-photos denoises as they are written.
+        os.remove(os.path.join(d, "gt", render.PHOTOS_DENOISED))
+        render.render_all(d, spp=4, denoise_photos=True, **quiet)
+        self.assertTrue(os.path.exists(os.path.join(d, "gt", render.PHOTOS_DENOISED)))
+        for r, a, b in zip(ref, raw, read()):
+            self.assertLess(err(b, r), 0.8 * err(a, r))
+
     def test_lambertian_plane_matches_closed_form(self):
         rho, L = 0.5, 10.0
         # A 1 m x 0.6 m light 1 m above a large plane, facing down.

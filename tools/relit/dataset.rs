@@ -61,6 +61,10 @@ pub struct DatasetArgs {
     /// proxy_error[(k div a) mod b], so every pair occurs.
     #[arg(long, default_value = "1", value_delimiter = ',', num_args = 1..)]
     pub proxy_error: Vec<f32>,
+    /// Each room's surfaces (scenegen's `--finishes`); a list (`classic,varied`) is taken in
+    /// turn by seed, as `--light-views` is (lists of coprime lengths give every combination).
+    #[arg(long, value_enum, default_value = "classic", value_delimiter = ',', num_args = 1..)]
+    pub finishes: Vec<relit_scenegen::room::Finishes>,
     /// Samples per pixel of the ground truth.
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
@@ -72,6 +76,11 @@ pub struct DatasetArgs {
     /// that datasets built before it stay consistent; a scene's ground truth records the choice.
     #[arg(long)]
     pub denoise: bool,
+    /// Denoise the input photographs too (render.py --denoise-photos): a camera's photo has none
+    /// of the path tracer's fireflies, which caustics scatter over a 64 spp image and which the
+    /// ratio composite carries into every relit frame. A scene's ground truth records it.
+    #[arg(long)]
+    pub denoise_photos: bool,
 }
 
 /// One scene of the dataset.
@@ -229,6 +238,7 @@ fn ground_truth(a: &DatasetArgs, dir: &Path, seed: u64) -> Result<()> {
         light_views: a.light_views[(seed % a.light_views.len() as u64) as usize],
         lamp_colours: a.lamp_colours,
         proxy_error: proxy_error(a, seed),
+        finishes: a.finishes[(seed % a.finishes.len() as u64) as usize],
     };
     relit_scenegen::generate(dir, seed, &o)?;
     let script = crate::tools_dir().join("groundtruth/render.py");
@@ -237,6 +247,7 @@ fn ground_truth(a: &DatasetArgs, dir: &Path, seed: u64) -> Result<()> {
         .arg(dir)
         .args(["--spp", &a.spp.to_string()])
         .args(a.denoise.then_some("--denoise"))
+        .args(a.denoise_photos.then_some("--denoise-photos"))
         .output()
         .with_context(|| format!("running python3 {} (run tools/setup.sh)", script.display()))?;
     if !out.status.success() {
@@ -257,11 +268,15 @@ fn proxy_error(a: &DatasetArgs, seed: u64) -> f32 {
 }
 
 /// What the ground-truth marker holds: "denoised" or empty (raw targets, as datasets before
-/// `--denoise`), then " mixed-lamps" when the added lights' tints were drawn `mixed`.
+/// `--denoise`), then " mixed-lamps" when the added lights' tints were drawn `mixed`, then
+/// " photos-denoised" with `--denoise-photos`.
 fn marker(a: &DatasetArgs) -> String {
     let mut m = if a.denoise { "denoised" } else { "" }.to_string();
     if a.lamp_colours == relit_scenegen::room::LampColours::Mixed {
         m.push_str(" mixed-lamps");
+    }
+    if a.denoise_photos {
+        m.push_str(" photos-denoised");
     }
     m.trim().to_string()
 }
@@ -277,7 +292,12 @@ fn describe_marker(m: &str) -> String {
     } else {
         "--lamp-colours mild"
     };
-    format!("{targets} and {lamps}")
+    let photos = if m.split(' ').any(|w| w == "photos-denoised") {
+        "denoised photographs (--denoise-photos)"
+    } else {
+        "raw photographs"
+    };
+    format!("{targets}, {lamps} and {photos}")
 }
 
 /// Every camera with ground truth: the input views (each left out of its own inputs) and the

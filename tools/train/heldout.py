@@ -13,10 +13,12 @@ Sets (fixed here, so that every report speaks of the same rooms):
 - validation: what checkpoints and designs are chosen on: scenegen seeds 800000–800001.
 - tiny: one small room (the evaluation's own test).
 
-Per room OUT/<room>/ holds a scene (scene.json, meshes, images/, gt/{original,lamp}/ for the
-test views, denoised) with the presets eval_original (α_dim 0), eval_dimmed (the original at
+Per room OUT/<room>/ holds a scene (scene.json, meshes, images/ denoised as a camera's photos
+have no fireflies, gt/{original,lamp}/ for the test views, denoised) with the presets eval_original (α_dim 0), eval_dimmed (the original at
 30 % + the lamp) and eval_alone (the lamp alone), and its preview bake. A finished room has
-`.heldout-done`; an unfinished one is rebuilt from scratch (renders) or resumed (the bake).
+`.heldout-done`; an unfinished one is rebuilt from scratch (renders) or resumed (the bake). A
+room built before its photographs were denoised (2026-12-02) has them denoised in place and
+is baked again.
 """
 import argparse
 import json
@@ -124,12 +126,19 @@ def generate(room_dir, source, o, bins):
     write_json(os.path.join(room_dir, "heldout.json"), {"source": source, **o})
 
 
+def photos_denoised(room):
+    return os.path.exists(os.path.join(room, "gt", ".photos-denoised"))
+
+
 def build_room(out, name, source, o, a, bins, log):
     room = os.path.join(out, name)
-    if os.path.exists(os.path.join(room, DONE)):
+    if os.path.exists(os.path.join(room, DONE)) and photos_denoised(room):
         return False
     t0 = time.time()
+    render_py = os.path.join(ROOT, "tools", "groundtruth", "render.py")
     marker = os.path.join(room, ".rendered")
+    if os.path.exists(marker) and not photos_denoised(room):
+        run(["python3", render_py, room, "--only", "photos"], f"{name}: denoise photographs")
     if not os.path.exists(marker):
         if os.path.exists(room):
             shutil.rmtree(room)
@@ -137,9 +146,8 @@ def build_room(out, name, source, o, a, bins, log):
         with open(os.path.join(room, "scene.json")) as f:
             tests = [v["name"] for v in json.load(f)["synthetic"]["test_views"]]
         # Mitsuba lives in the system Python (tools/setup.sh), not the trainer's environment.
-        render = ["python3", os.path.join(ROOT, "tools", "groundtruth", "render.py"), room,
-                  "--spp", str(a.spp)]
-        run(render + ["--only", "inputs"], f"{name}: input photographs")
+        render = ["python3", render_py, room, "--spp", str(a.spp)]
+        run(render + ["--only", "inputs", "--denoise-photos"], f"{name}: input photographs")
         run(render + ["--views", ",".join(tests), "--denoise"], f"{name}: test-view truth")
         open(marker, "w").close()
     run([bins["relit"], "bake", room, "--quality", "preview"], f"{name}: bake")

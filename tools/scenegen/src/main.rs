@@ -44,6 +44,10 @@ struct SceneArgs {
     /// Proxy error as a fraction of the default MVS-like degradation (0: the true surfaces).
     #[arg(long, default_value_t = 1.0)]
     proxy_error: f32,
+    /// Surfaces: classic (pale plaster walls) or varied (coloured walls, a mirror, a lacquered
+    /// cabinet).
+    #[arg(long, value_enum, default_value = "classic")]
+    finishes: relit_scenegen::room::Finishes,
 }
 
 impl SceneArgs {
@@ -57,6 +61,7 @@ impl SceneArgs {
             light_views: self.light_views,
             lamp_colours: self.lamp_colours,
             proxy_error: self.proxy_error,
+            finishes: self.finishes,
         }
     }
 }

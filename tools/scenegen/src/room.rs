@@ -69,6 +69,20 @@ pub struct RoomOptions {
     /// degradation ([`crate::proxy::ProxyParams::scaled`]): 1 (default) as before, 0 the true
     /// surfaces remeshed at the proxy's edge length, as in rooms written by hand.
     pub proxy_error: f32,
+    /// Wall colours and the glossy furniture ([`Finishes`]).
+    pub finishes: Finishes,
+}
+
+/// What the room's surfaces are made of, beyond the furniture every room has.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Finishes {
+    /// One pale plaster colour on every wall (the rooms before 2026-12-02).
+    #[default]
+    Classic,
+    /// The classic room of the same seed, plus what tests/scenes/hand_room2 has and classic
+    /// rooms lack: each wall its own colour (half of them saturated and untextured), a
+    /// near-mirror on the north wall and a lacquered cabinet of a strong colour.
+    Varied,
 }
 
 /// How the added lights are tinted.
@@ -103,6 +117,7 @@ impl Default for RoomOptions {
             light_views: 3,
             lamp_colours: LampColours::Mild,
             proxy_error: 1.0,
+            finishes: Finishes::Classic,
         }
     }
 }
@@ -186,6 +201,59 @@ impl Builder<'_> {
             }
         }
         None
+    }
+}
+
+/// [`Finishes::Varied`]'s walls, mirror and cabinet, added to a classic room.
+fn vary(b: &mut Builder, size: Vec3, door_x: f32) {
+    for (i, wall) in ["wall_w", "wall_e", "wall_n", "wall_s"].iter().enumerate() {
+        let name = format!("wall{i}");
+        if b.rng.f32() < 0.5 {
+            let c = hue_tint(b.rng.f32(), b.rng.range(0.5, 0.9)) * b.rng.range(0.35, 0.7);
+            b.material(&name, "diffuse", c, None, 0.0, Vec3::ZERO);
+        } else {
+            let c = v3(b.rng, 0.3, 0.85);
+            let tex = Some((Kind::Plaster, 0.5));
+            b.material(&name, "diffuse", c, tex, 0.0, Vec3::ZERO);
+        }
+        for o in b.objects.iter_mut().filter(|o| o.name == *wall) {
+            o.material = name.clone();
+        }
+    }
+    // The mirror: 1 cm proud of the north wall (MVS merges it into the wall), clear of the
+    // doorway, its bottom edge at table height.
+    let (x0, x1, z0) = (-size.x / 2.0, size.x / 2.0, -size.z / 2.0);
+    let (w, h) = (b.rng.range(0.6, 1.1), b.rng.range(0.8, 1.2));
+    let y = b.rng.range(0.8, 1.1);
+    let spots = (0..20)
+        .map(|_| b.rng.range(x0 + 0.3, x1 - w - 0.3))
+        .collect::<Vec<_>>();
+    let rough = b.rng.range(0.02, 0.05);
+    let grey = Vec3::splat(b.rng.range(0.85, 0.95));
+    if let Some(x) = spots
+        .into_iter()
+        .find(|x| x + w < door_x - 0.1 || *x > door_x + 1.05)
+    {
+        let m = b.material("mirror", "conductor", Vec3::ZERO, None, rough, grey);
+        let prim = boxp(Vec3::new(x, y, z0), Vec3::new(x + w, y + h, z0 + 0.01));
+        b.add("mirror", prim, &m, Surface::Glossy);
+    }
+    // The cabinet: lacquer (a sharp coat over a strong colour) anywhere along the floor.
+    let c = hue_tint(b.rng.f32(), b.rng.range(0.4, 0.9)) * b.rng.range(0.25, 0.6);
+    let rough = b.rng.range(0.03, 0.1);
+    let (w, d, h) = (
+        b.rng.range(0.7, 1.0),
+        b.rng.range(0.4, 0.5),
+        b.rng.range(0.7, 1.0),
+    );
+    let (lo, hi) = (
+        Vec2::new(x0 + 0.05, z0 + 0.05),
+        Vec2::new(x1 - 0.05, -z0 - 0.05),
+    );
+    if let Some(p) = b.place(lo, hi, w, d) {
+        let m = b.material("cabinet", "plastic", c, None, rough, Vec3::ZERO);
+        let prim = boxp(Vec3::new(p.x, 0.0, p.y), Vec3::new(p.x + w, h, p.y + d));
+        b.add("cabinet", prim, &m, Surface::Glossy);
     }
 }
 
@@ -674,6 +742,13 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             boxp(Vec3::new(x1 - 0.01, y, z), Vec3::new(x1, y + hh, z + w))
         };
         b.add(&name, prim, &m, Surface::Textured);
+    }
+    if o.finishes == Finishes::Varied {
+        // A stream of its own, so that the rest of the room is the classic one of this seed.
+        let mut own = Rng::new(seed ^ 0xF141_54E5);
+        std::mem::swap(b.rng, &mut own);
+        vary(&mut b, size, door_x);
+        std::mem::swap(b.rng, &mut own);
     }
 
     let Builder {
