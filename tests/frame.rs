@@ -377,16 +377,17 @@ fn leave_one_out_excludes_the_view_from_every_pass() {
 
 /// Network mode end to end: the frame's output equals the output transform applied to the
 /// network run separately on the frame's own input tensor, for both bases (the ratio base is
-/// formed from that input by `output::ratio_base`, as `model.py` forms it).
+/// formed from that input by `output::ratio_base`, as `model.py` forms it), and with `shrink`.
 #[test]
 fn network_mode_output_matches_network_on_the_frame_input() {
     let gpu = common::gpu();
     let t = tiny();
-    for (storage, base) in [
-        (Storage::F32, NetBase::None),
-        (Storage::F16, NetBase::None),
-        (Storage::F32, NetBase::Ratio),
-        (Storage::F16, NetBase::Ratio),
+    for (storage, base, shrink) in [
+        (Storage::F32, NetBase::None, 0.0),
+        (Storage::F16, NetBase::None, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.0),
+        (Storage::F16, NetBase::Ratio, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.02),
     ] {
         let scene =
             FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, &[], MapFormat::Rgba16f)
@@ -394,6 +395,7 @@ fn network_mode_output_matches_network_on_the_frame_input() {
         let mut cfg = NetConfig::paper(8);
         cfg.levels = 3;
         cfg.base = base;
+        cfg.shrink = shrink;
         let mk = || {
             Network::from_params(
                 NetKernels::new(&gpu, storage).unwrap(),
@@ -416,12 +418,19 @@ fn network_mode_output_matches_network_on_the_frame_input() {
         let has = surface_mask(b);
         let out = mk().run(&input, h, w).unwrap();
         let ratio_in = (base == NetBase::Ratio).then_some(&input[..]);
-        let want = output::reference_network(&out, ratio_in, npix, &has);
+        let want = output::reference_network(&out, ratio_in, shrink, npix, &has);
+        if shrink > 0.0 {
+            let unshrunk = output::reference_network(&out, ratio_in, 0.0, npix, &has);
+            assert!(
+                want != unshrunk,
+                "shrink {shrink} changed nothing: not a test of it"
+            );
+        }
         assert_close(
             &r.hdr().unwrap(),
             &want,
             1e-3,
-            &format!("{storage:?} {base:?}"),
+            &format!("{storage:?} {base:?} shrink {shrink}"),
         );
         assert!(r
             .render(&t.novel, &lighting, Mode::Network, 1.0, None)

@@ -183,25 +183,37 @@ fn network_matches_pytorch_golden() {
 
 /// A network with base "ratio": the output pass's CPU reference (`reference_network` with the
 /// input) turns the raw golden output into the image PyTorch composes (`model.py`: the ratio
-/// base added to O_d), within 1e-4 of the image's scale; the GPU output pass is held to that
-/// reference by tests/frame.rs.
+/// base added to O_d), within 1e-4 of the image's scale, without `shrink` and with the golden's
+/// (every correction soft-thresholded); the GPU output pass is held to that reference by
+/// tests/frame.rs.
 #[test]
 fn ratio_base_matches_pytorch_golden() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
     let io = std::fs::read(dir.join("net_w12r.io.safetensors")).unwrap();
+    let (_, meta) = safetensors::SafeTensors::read_metadata(&io).unwrap();
+    let shrink: f32 = meta.metadata().as_ref().unwrap()["shrink"].parse().unwrap();
+    assert!(shrink > 0.0);
     let st = safetensors::SafeTensors::deserialize(&io).unwrap();
-    let image: Vec<f32> = bytemuck::pod_collect_to_vec(st.tensor("image").unwrap().data());
     let (_, x, y, shape) = golden("net_w12r");
     let npix = shape[1] * shape[2];
-    let got = relit_engine::frame::output::reference_network(&y, Some(&x), npix, &vec![true; npix]);
     let untm = relit_engine::frame::features::untonemap;
-    let want: Vec<f32> = (0..3)
-        .flat_map(|k| (0..npix).map(move |p| (k, p)))
-        .map(|(k, p)| untm(image[k * npix + p] + image[(k + 3) * npix + p]))
-        .collect();
-    let got: Vec<f32> = (0..3).flat_map(|k| got.iter().map(move |c| c[k])).collect();
-    let (e, s) = max_err(&got, &want);
-    assert!(e <= 1e-4 * s, "ratio base: max error {e}, scale {s}");
+    for (key, tau) in [("image", 0.0), ("image_shrink", shrink)] {
+        let image: Vec<f32> = bytemuck::pod_collect_to_vec(st.tensor(key).unwrap().data());
+        let got = relit_engine::frame::output::reference_network(
+            &y,
+            Some(&x),
+            tau,
+            npix,
+            &vec![true; npix],
+        );
+        let want: Vec<f32> = (0..3)
+            .flat_map(|k| (0..npix).map(move |p| (k, p)))
+            .map(|(k, p)| untm(image[k * npix + p] + image[(k + 3) * npix + p]))
+            .collect();
+        let got: Vec<f32> = (0..3).flat_map(|k| got.iter().map(move |c| c[k])).collect();
+        let (e, s) = max_err(&got, &want);
+        assert!(e <= 1e-4 * s, "{key}: max error {e}, scale {s}");
+    }
 }
 
 /// The trained network built into relit against PyTorch (float64) on a random input: the

@@ -10,6 +10,7 @@
 // A network with base "ratio" (model.py) corrects the ratio image: its diffuse output is added
 // to tm(R), R formed from the network's own input channels (I_1, E_src/π, E_add/π, E_rem/π,
 // untonemapped), as model.py's ratio_base does, so the trainer and the engine compute the same.
+// Its shrink τ soft-thresholds each correction where I_1 (the input's channels 0–2) is not black.
 #extension GL_EXT_scalar_block_layout : require
 #include "act_storage.glsl"
 #include "camera.glsl"
@@ -30,6 +31,7 @@ layout(push_constant, scalar) uniform Push {
     Camera cam;      // the novel camera (for the rays towards the added lights)
     uint nlights;
     uint base;       // NetBase: 0 none, 1 ratio
+    float shrink;    // NetConfig::shrink (0: none)
 } pc;
 
 const uint MODE_NETWORK = 0u;
@@ -52,6 +54,8 @@ vec3 ratio_base(uint p, uint npix) {
     return tm(i1 / max(es, vec3(E_FLOOR / 3.14159265358979)) * (ea + es - er));
 }
 
+vec3 soft_threshold(vec3 c, float t) { return sign(c) * max(abs(c) - t, vec3(0.0)); }
+
 float srgb(float x) {
     x = clamp(x, 0.0, 1.0);
     return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
@@ -68,9 +72,13 @@ void main() {
     if (xp.w > 0.0) {
         if (pc.mode == MODE_NETWORK || (pc.mode == MODE_RATIO_FILLED && hole)) {
             vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
-            vec3 od = a.xyz;
-            if (pc.base == 1u) od += ratio_base(p, npix);
-            vec3 tmo = max(od + vec3(a.w, b.x, b.y), vec3(0.0));
+            vec3 od = a.xyz, ov = vec3(a.w, b.x, b.y);
+            if (pc.base == 1u) {
+                float t = any(notEqual(vec4(x[p]).xyz, vec3(0.0))) ? pc.shrink : 0.0;
+                od = soft_threshold(od, t) + ratio_base(p, npix);
+                ov = soft_threshold(ov, t);
+            }
+            vec3 tmo = max(od + ov, vec3(0.0));
             c = untm(tmo);
         } else if (pc.mode == MODE_ULR) {
             c = vec3(comp[p].rgb);

@@ -1016,8 +1016,13 @@ fn shipped_network() -> String {
         true => String::new(),
         false => format!(" averaged with step {}", steps.join(", ")),
     };
+    let base = match (net["base"].as_str(), net["shrink"].as_f64()) {
+        (Some(b), Some(t)) => format!(", base {b}, shrink {t}"),
+        (Some(b), None) => format!(", base {b}"),
+        _ => String::new(),
+    };
     format!(
-        "width {}, run {} at step {}{averaged}, built into relit from {}",
+        "width {}{base}, run {} at step {}{averaged}, built into relit from {}",
         net["width"],
         trained["run"].as_str().unwrap_or("?"),
         trained["step"],

@@ -1,7 +1,7 @@
 """Exports the weights of a run's latest checkpoint without stopping the run: the engine's
 weights file (`relit render --weights W`) and the run's curves.png.
 
-    python tools/train/export.py RUN|W [--out W] [--dtype f16|f32] [--average W1 ...]
+    python tools/train/export.py RUN|W [--out W] [--dtype f16|f32] [--average W1 ...] [--shrink T]
 
 RUN is a run directory (its checkpoint is exported), W weights a run kept along the way
 (`train.py --save-every`).
@@ -13,6 +13,10 @@ computes in fp32 either way, and its fp16-storage path rounds the weights to fp1
 same network (stochastic weight averaging: a run that oscillates between checkpoints, as ours
 does under the adversarial term, can be better at their mean than at either); their steps go
 into the "relit.trained" metadata.
+
+`--shrink T` sets the exported network's soft threshold on its corrections (model.py's
+`shrink`, base "ratio" only): a correction smaller than T in tonemapped space leaves the ratio
+image as it is. Choose T on the validation rooms (evaluate.py), never on held-out ones.
 """
 
 import argparse
@@ -68,10 +72,17 @@ def load_base(run):
     return net, {"run": os.path.basename(os.path.abspath(run)), "step": c["step"]}
 
 
-def export(run, out, dtype, average=()):
+def export(run, out, dtype, average=(), shrink=None):
     net, trained = load_base(run)
     if average:
         trained["averaged_with"] = average_into(net, average)
+    if shrink is not None:
+        cfg = dict(net.config, shrink=shrink)
+        try:
+            M.RelightNet(**cfg)
+        except ValueError as e:
+            sys.exit(f"--shrink {shrink}: {e}")
+        net.config = cfg
     tmp = out + ".tmp"
     M.save(net, tmp, dtype={"f16": torch.float16, "f32": torch.float32}[dtype], trained=trained)
     os.replace(tmp, out)
@@ -88,11 +99,13 @@ def main():
     ap.add_argument("--dtype", choices=["f16", "f32"], default="f32")
     ap.add_argument("--average", nargs="+", default=[], metavar="W",
                     help="weights files of the same network to average with the checkpoint's")
+    ap.add_argument("--shrink", type=float, metavar="T",
+                    help="soft threshold on the corrections (base ratio): below T, the ratio image")
     a = ap.parse_args()
     if not a.out and not os.path.isdir(a.run):
         sys.exit("--out is needed when exporting a weights file")
     out = a.out or os.path.join(a.run, "weights.safetensors")
-    step = export(a.run, out, a.dtype, a.average)
+    step = export(a.run, out, a.dtype, a.average, a.shrink)
     print(f"{out}: step {step}, {os.path.getsize(out) / 1e6:.1f} MB ({a.dtype})"
           + (f", averaged with {', '.join(a.average)}" if a.average else ""))
 

@@ -6,7 +6,8 @@ convs) and a random input, with the PyTorch output computed in float64.
 
 (CASE: some of the cases below, by name; default all). A case with base "ratio" also holds
 "image": the composed [O_d, O_v] (the ratio base added to O_d), which the engine's output
-pass must reproduce from the raw output and the input (`frame::output::reference_network`).
+pass must reproduce from the raw output and the input (`frame::output::reference_network`),
+and "image_shrink": the same with `shrink` τ = SHRINK (the file's metadata "shrink").
 
 and, whenever the shipped weights change, the output of the trained network built into relit
 (engine/weights/relit.safetensors) on a random input, with the weights' metadata copied so that
@@ -32,6 +33,10 @@ CASES = {
     "net_w12r": dict(cfg=dict(width=12, levels=3, base="ratio"), size=(16, 24),
                      dtype=torch.float32),
 }
+
+
+# The soft threshold of the "image_shrink" golden (the random corrections are ~1 in size).
+SHRINK = 0.05
 
 
 def randomize(net, gen):
@@ -63,9 +68,15 @@ def main(out, names=()):
         with torch.no_grad():
             y, image = net.raw(x), net(x)
         io = {"input": x[0].float().contiguous(), "output": y[0].float().contiguous()}
+        meta = None
         if net.config["base"] != "none":
             io["image"] = image[0].float().contiguous()
-        save_file(io, out / f"{name}.io.safetensors")
+            net.config["shrink"] = SHRINK
+            with torch.no_grad():
+                io["image_shrink"] = net(x)[0].float().contiguous()
+            net.config["shrink"] = 0.0
+            meta = {"shrink": str(SHRINK)}
+        save_file(io, out / f"{name}.io.safetensors", metadata=meta)
         print(name, tuple(y.shape), float(y.abs().max()))
 
 

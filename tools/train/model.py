@@ -14,6 +14,9 @@ Structure (W = width):
                    (ratio_base; the engine's output pass forms the same); out_conv starts at
                    zero, so an untrained network renders the ratio image and training adds to it.
                    base "none": the network's output is the image (the paper's formulation).
+  shrink         : τ ≥ 0 (base "ratio" only): on covered pixels (I_1 not black) each correction
+                   channel c becomes sign(c)·max(|c| − τ, 0), so corrections smaller than τ
+                   (tonemapped) leave the ratio image as it is; 0 (default) keeps them all.
 
 Choices where the paper is silent (documented in the README): no activation after the
 downsampling convs, the input conv is linear, the output conv is linear with a bias.
@@ -29,7 +32,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 DEFAULT_CONFIG = dict(in_channels=66, width=66, trunk_blocks=4, levels=5, level_blocks=4,
-                      tail_blocks=2, out_channels=6, base="none")
+                      tail_blocks=2, out_channels=6, base="none", shrink=0.0)
 BASES = ("none", "ratio")
 from constants import E_FLOOR as _E_FLOOR, MU
 
@@ -46,6 +49,11 @@ def tm(x):
 
 def untm(y):
     return torch.expm1(y.clamp(min=0) * math.log1p(MU)) / MU
+
+
+def soft_threshold(c, tau):
+    """sign(c)·max(|c| − τ, 0): what `shrink` does to a correction."""
+    return torch.sign(c) * (c.abs() - tau).clamp(min=0)
 
 
 def ratio_base(x):
@@ -90,6 +98,10 @@ class RelightNet(nn.Module):
         c.update(cfg)
         if c["base"] not in BASES:
             raise ValueError(f"base {c['base']!r}: expected one of {BASES}")
+        if not (c["shrink"] >= 0 and math.isfinite(c["shrink"])):
+            raise ValueError(f"shrink {c['shrink']!r}: expected a finite value >= 0")
+        if c["shrink"] > 0 and c["base"] != "ratio":
+            raise ValueError("shrink applies to a network with base \"ratio\" only")
         self.config = c
         w = c["width"]
         total = c["trunk_blocks"] + c["levels"] * c["level_blocks"] + c["tail_blocks"]
@@ -107,7 +119,13 @@ class RelightNet(nn.Module):
         """[O_d, O_v] in tonemapped space: the raw output, plus the base on O_d."""
         y = self.raw(x)
         if self.config["base"] == "ratio":
-            y = torch.cat([y[:, :3] + ratio_base(x), y[:, 3:]], 1)
+            cd, cv = y[:, :3], y[:, 3:]
+            tau = self.config["shrink"]
+            if tau > 0:
+                covered = (x[:, I1] != 0).any(1, keepdim=True)
+                cd = torch.where(covered, soft_threshold(cd, tau), cd)
+                cv = torch.where(covered, soft_threshold(cv, tau), cv)
+            y = torch.cat([cd + ratio_base(x), cv], 1)
         return y
 
     def raw(self, x):
@@ -146,6 +164,8 @@ def save(model, path, dtype=torch.float32, trained=None):
     cfg = dict(model.config)
     if cfg["base"] == "none":
         del cfg["base"]  # as files written before the option, which every engine reads
+    if cfg["shrink"] == 0:
+        del cfg["shrink"]  # likewise
     meta = {"relit.net": json.dumps(cfg, sort_keys=True)}
     if trained is not None:
         meta["relit.trained"] = json.dumps(trained, sort_keys=True)

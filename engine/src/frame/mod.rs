@@ -764,6 +764,7 @@ impl Renderer {
                 Some(crate::net::NetBase::Ratio) => 1,
                 _ => 0,
             },
+            shrink: self.net.as_ref().map_or(0.0, |n| n.config.shrink),
         };
         // The passes that only feed the network (see `display_only`).
         let inputs = mode.needs_network() || !self.display_only;

@@ -21,13 +21,15 @@ pub struct Push {
     pub nlights: u32,
     /// [`crate::net::NetBase`]: 0 none, 1 ratio.
     pub base: u32,
+    /// [`crate::net::NetConfig::shrink`].
+    pub shrink: f32,
 }
 
 /// Push as its shaders' push block declares it (tests/gpu.rs checks).
 pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
     Push,
     [shaders::FRAME_OUTPUT, shaders::FRAME_OUTPUT_F32],
-    [width, height, mode, exposure, cam, nlights, base]
+    [width, height, mode, exposure, cam, nlights, base, shrink]
 );
 
 pub const SHADER_F16: crate::gpu::Shader = shaders::FRAME_OUTPUT;
@@ -45,10 +47,12 @@ pub fn srgb(x: f32) -> f32 {
 
 /// CPU reference of network mode: linear RGB per pixel from the 6 output channels (planar CHW),
 /// black where `has_surface` is false. With `ratio_input` (the network's 66-channel input,
-/// planar CHW), the diffuse channels correct [`ratio_base`] (a network with base "ratio").
+/// planar CHW), the diffuse channels correct [`ratio_base`] (a network with base "ratio"),
+/// each correction soft-thresholded by `shrink` where I_1 is not black.
 pub fn reference_network(
     net_out: &[f32],
     ratio_input: Option<&[f32]>,
+    shrink: f32,
     npix: usize,
     has_surface: &[bool],
 ) -> Vec<[f32; 3]> {
@@ -58,13 +62,21 @@ pub fn reference_network(
                 return [0.0; 3];
             }
             let base = ratio_input.map_or([0.0; 3], |x| ratio_base(x, npix, p));
+            let covered = ratio_input.is_some_and(|x| (0..3).any(|k| x[k * npix + p] != 0.0));
+            let t = if covered { shrink } else { 0.0 };
             let c = |k: usize| {
-                let o = base[k] + net_out[k * npix + p] + net_out[(k + 3) * npix + p];
+                let (d, v) = (net_out[k * npix + p], net_out[(k + 3) * npix + p]);
+                let o = base[k] + soft_threshold(d, t) + soft_threshold(v, t);
                 super::features::untonemap(o)
             };
             [c(0), c(1), c(2)]
         })
         .collect()
+}
+
+/// sign(c)·max(|c| − τ, 0): a network's correction under `shrink` (`model.py`).
+pub fn soft_threshold(c: f32, tau: f32) -> f32 {
+    c.signum() * (c.abs() - tau).max(0.0)
 }
 
 /// tm of eq. 5's ratio image at pixel `p` from the network input (planar CHW): I_1 (channels

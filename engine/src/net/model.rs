@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{vk, Gpu, Timer};
 
 /// The network's shape (the paper: 66 in, width 66, 4 / 5×4 / 2 blocks, 6 out).
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NetConfig {
     pub in_channels: u32,
@@ -26,6 +26,14 @@ pub struct NetConfig {
     /// What the output's diffuse channels correct (absent in files written before it: none).
     #[serde(default, skip_serializing_if = "NetBase::is_none")]
     pub base: NetBase,
+    /// Soft threshold τ on the corrections (base ratio only; `model.py`): on covered pixels a
+    /// correction c becomes sign(c)·max(|c| − τ, 0) in tonemapped space. 0: none.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub shrink: f32,
+}
+
+fn is_zero(x: &f32) -> bool {
+    *x == 0.0
 }
 
 /// The image the network's diffuse output is added to, in tonemapped space (`model.py`).
@@ -57,6 +65,7 @@ impl NetConfig {
             tail_blocks: 2,
             out_channels: 6,
             base: NetBase::None,
+            shrink: 0.0,
         }
     }
 }
@@ -115,6 +124,17 @@ impl SafetensorsParams {
             return Err(Error::input(
                 path,
                 "metadata \"relit.net\": width, levels, in_channels and out_channels must be > 0",
+            ));
+        }
+        if !(cfg.shrink >= 0.0 && cfg.shrink.is_finite())
+            || (cfg.shrink > 0.0 && cfg.base != NetBase::Ratio)
+        {
+            return Err(Error::input(
+                path,
+                format!(
+                    "metadata \"relit.net\": shrink {} must be finite, >= 0, and 0 unless base is \"ratio\"",
+                    cfg.shrink
+                ),
             ));
         }
         Ok((
