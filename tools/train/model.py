@@ -51,6 +51,12 @@ def untm(y):
     return torch.expm1(y.clamp(min=0) * math.log1p(MU)) / MU
 
 
+def full_config(cfg):
+    """A configuration with every key: checkpoints and files written before a key existed
+    (base, shrink) hold its default."""
+    return dict(DEFAULT_CONFIG, **cfg)
+
+
 def soft_threshold(c, tau):
     """sign(c)·max(|c| − τ, 0): what `shrink` does to a correction."""
     return torch.sign(c) * (c.abs() - tau).clamp(min=0)

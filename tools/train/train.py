@@ -249,7 +249,7 @@ def init_from(a, net, opt, disc, opt_d, lead):
     if not os.path.exists(a.init_from):
         sys.exit(f"{a.init_from}: no checkpoint to start from (--init-from)")
     c = torch.load(a.init_from, weights_only=False, map_location=a.device)
-    if c["config"] != net.config:
+    if M.full_config(c["config"]) != net.config:
         sys.exit(f"{a.init_from}: network {c['config']} differs from {net.config} "
                  "(--width, --*-blocks)")
     net.load_state_dict(c["model"])
@@ -273,7 +273,7 @@ def init_weights(a, net, lead):
         src = M.load(a.init_weights)
     except (OSError, KeyError, ValueError) as e:
         sys.exit(f"{a.init_weights}: not a weights file ({e})")
-    shape = lambda c: {k: v for k, v in c.items() if k != "base"}
+    shape = lambda c: {k: v for k, v in c.items() if k not in ("base", "shrink")}
     if shape(src.config) != shape(net.config):
         sys.exit(f"{a.init_weights}: network {src.config} differs from {net.config} "
                  "(--width, --*-blocks)")
@@ -390,7 +390,7 @@ def main():
         if c["terms"] != terms:
             sys.exit(f"{ckpt}: trained with {c['terms']}, not {terms} "
                      "(--vgg, --multiview, --adv, torchrun processes)")
-        if c["config"] != net.config:
+        if M.full_config(c["config"]) != net.config:
             sys.exit(f"{ckpt}: network {c['config']} differs from {net.config} (--width, --*-blocks)")
         net.load_state_dict(c["model"])
         opt.load_state_dict(c["optimizer"])
