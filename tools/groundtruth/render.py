@@ -389,7 +389,7 @@ def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed
     if only in ("all", "aov") or (only == "inputs" and denoise_photos):
         render_aovs(scene_dir, doc, scene_path, gt, cams)
     dn = denoiser(gt) if denoise and only == "all" else None
-    photo_dn = denoiser(gt) if denoise_photos else None
+    photo_dn = (dn or denoiser(gt)) if denoise_photos else None
     photos = 0
     if only in ("all", "inputs"):
         diffuse = mi.load_dict({"type": "diffuse_first_bounce", "max_depth": MAX_DEPTH})

@@ -127,6 +127,7 @@ def generate(room_dir, source, o, bins):
 
 
 def photos_denoised(room):
+    # render.py's PHOTOS_DENOISED marker (render.py imports Mitsuba, which this env lacks).
     return os.path.exists(os.path.join(room, "gt", ".photos-denoised"))
 
 
