@@ -484,9 +484,8 @@ pub struct Renderer {
     view_cull: Pipeline,
     /// The active views of the last frame, ascending.
     active: Vec<u32>,
-    /// Frames over more views than this choose their active views ([`view_cull`]);
-    /// [`view_cull::CULL_ABOVE`] unless a test lowers it.
-    pub cull_above: usize,
+    /// When frames choose their active views ([`view_cull`]) and how many.
+    pub culling: view_cull::Culling,
     /// Buffers per resolution, the last frame's first: the viewer alternates a reduced
     /// resolution while moving with the full one when still, so two stay allocated.
     bufs: Vec<FrameBuffers>,
@@ -543,7 +542,7 @@ impl Renderer {
             output: Pipeline::compute(gpu, out)?,
             view_cull: Pipeline::compute(gpu, view_cull::SHADER)?,
             active: Vec::new(),
-            cull_above: view_cull::CULL_ABOVE,
+            culling: view_cull::Culling::default(),
             gpu: gpu.clone(),
             scene,
             net,
@@ -815,18 +814,25 @@ impl Renderer {
         res
     }
 
-    /// Chooses the frame's active views (`self.active`). With more views than `cull_above`
+    /// Chooses the frame's active views (`self.active`). With more views than `culling.above`
     /// this renders the G-buffer and the view culling pass in a submission of their own and
     /// reads the pass back (returns true: the G-buffer is done).
     fn cull_views(&mut self, cam: &Camera, timer: Option<&mut Timer>) -> Result<bool> {
         let n = self.scene.data.cameras.len();
-        if !view_cull::needed(n, self.exclude, self.cull_above) {
+        if !self.culling.needed(n, self.exclude) {
             self.active = (0..n as u32).filter(|&i| Some(i) != self.exclude).collect();
             return Ok(false);
         }
         let (seen, points) = self.view_visibility(cam, timer)?;
         let cameras = &self.scene.data.cameras;
-        self.active = view_cull::choose(&seen, &points, cameras, cam.center(), self.exclude);
+        self.active = view_cull::choose(
+            &self.culling,
+            &seen,
+            &points,
+            cameras,
+            cam.center(),
+            self.exclude,
+        );
         Ok(true)
     }
 

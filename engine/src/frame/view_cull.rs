@@ -96,18 +96,42 @@ pub fn reference(
     (seen, points)
 }
 
-/// Whether a frame needs the culling pass: more candidate views than `above`
-/// ([`CULL_ABOVE`] but in tests).
-pub fn needed(nviews: usize, exclude: Option<u32>, above: usize) -> bool {
-    let left_out = exclude.is_some_and(|e| (e as usize) < nviews);
-    nviews - left_out as usize > above
+/// When a frame culls and how far: [`CULL_ABOVE`], [`VIEW_BUDGET`] and [`MIN_COVER`] but in
+/// tests, which lower them to cull a small room.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Culling {
+    /// Frames over more views than this choose their active views.
+    pub above: usize,
+    /// The mean number of active views that see a covered grid point.
+    pub budget: f32,
+    /// Views kept per seen grid point, whatever the budget.
+    pub min_cover: u32,
+}
+
+impl Default for Culling {
+    fn default() -> Self {
+        Culling {
+            above: CULL_ABOVE,
+            budget: VIEW_BUDGET,
+            min_cover: MIN_COVER,
+        }
+    }
+}
+
+impl Culling {
+    /// Whether a frame over `nviews` views, `exclude` left out, needs the culling pass.
+    pub fn needed(&self, nviews: usize, exclude: Option<u32>) -> bool {
+        let left_out = exclude.is_some_and(|e| (e as usize) < nviews);
+        nviews - left_out as usize > self.above
+    }
 }
 
 /// The active views, ascending, from the pass's visibility bits: first views that cover the
-/// grid points seen least (greedy, up to [`MIN_COVER`] views per point), then views by
+/// grid points seen least (greedy, up to `c.min_cover` views per point), then views by
 /// relevance (the sum over the points they see of the composites' weights w1·w2, §4.3.1) while
-/// the mean views per covered point stays within [`VIEW_BUDGET`]; at most [`MAX_ACTIVE`].
+/// the mean views per covered point stays within `c.budget`; at most [`MAX_ACTIVE`].
 pub fn choose(
+    c: &Culling,
     seen: &[u32],
     points: &[[f32; 4]],
     cameras: &[Camera],
@@ -129,7 +153,7 @@ pub fn choose(
         for_each_bit(bits(j), |s| need[s] += 1);
     }
     let covered = need.iter().filter(|&&n| n > 0).count();
-    need.iter_mut().for_each(|n| *n = (*n).min(MIN_COVER));
+    need.iter_mut().for_each(|n| *n = (*n).min(c.min_cover));
     let mut chosen: Vec<usize> = Vec::new();
     let mut taken = vec![false; cameras.len()];
     while chosen.len() < MAX_ACTIVE {
@@ -147,7 +171,7 @@ pub fn choose(
         taken[j] = true;
         chosen.push(j);
     }
-    let budget = (VIEW_BUDGET * covered as f32) as u32;
+    let budget = (c.budget * covered as f32) as u32;
     let mut load: u32 = chosen.iter().map(|&j| count(j)).sum();
     let mut rest: Vec<usize> = cand.iter().copied().filter(|&j| !taken[j]).collect();
     rest.sort_by(|&a, &b| rel[b].total_cmp(&rel[a]).then(a.cmp(&b)));
