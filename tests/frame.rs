@@ -10,6 +10,7 @@ use relit_engine::frame::{
     Lighting, MapFormat, Mode, RefInputs, Renderer,
 };
 use relit_engine::net::{NetBase, NetConfig, NetKernels, Network, Params, RandomParams, Storage};
+use relit_engine::raster::GbufferPixels;
 use relit_engine::scene::synth::{self, SynthOptions};
 use relit_engine::scene::{Camera, Light, LightShape, Mesh};
 
@@ -127,6 +128,31 @@ fn mismatch(gpu: &[[f32; 4]], cpu: &[[f32; 4]], tol: f32) -> (f32, f32) {
     }
     (bad as f32 / gpu.len().max(1) as f32, worst)
 }
+/// The CPU references' inputs for the frame `r` last rendered from `cam` (without live lights).
+fn ref_inputs<'a>(
+    r: &'a Renderer,
+    t: &'a Tiny,
+    g: &'a GbufferPixels,
+    cam: &Camera,
+    active: &'a [u32],
+    lighting: &'a Lighting,
+) -> RefInputs<'a> {
+    RefInputs {
+        data: &r.scene.data,
+        maps: &t.host,
+        gpos: &g.pos_depth,
+        gnrm: &g.normal,
+        width: cam.width,
+        height: cam.height,
+        eye: cam.center(),
+        active,
+        intensities: &lighting.intensities,
+        alpha_dim: lighting.alpha_dim,
+        exclude: r.exclude,
+        emitters: &r.scene.emitters,
+        live: None,
+    }
+}
 
 /// A renderer without a network over exact maps, two added lights, one of them on.
 fn ulr_renderer(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>, t: &Tiny) -> (Renderer, Lighting) {
@@ -160,28 +186,13 @@ fn frame_passes_match_cpu_references() {
     let npix = (t.novel.width * t.novel.height) as usize;
     let surf = g.pos_depth.iter().filter(|p| p[3] > 0.0).count();
     assert!(surf * 10 > npix * 9, "the novel view must see the room");
-    let eye = t.novel.center();
     let active = r.active_views().to_vec();
     assert_eq!(
         active.len(),
         r.scene.data.cameras.len(),
         "6 views: all take part"
     );
-    let inputs = RefInputs {
-        data: &r.scene.data,
-        maps: &t.host,
-        gpos: &g.pos_depth,
-        gnrm: &g.normal,
-        width: t.novel.width,
-        height: t.novel.height,
-        eye,
-        active: &active,
-        intensities: &lighting.intensities,
-        alpha_dim: lighting.alpha_dim,
-        exclude: None,
-        emitters: &r.scene.emitters,
-        live: None,
-    };
+    let inputs = ref_inputs(&r, &t, &g, &t.novel, &active, &lighting);
     let dl = |buf: &relit_engine::gpu::Buffer, planes: usize| {
         let mut v: Vec<[f32; 4]> = buf.download_vec().unwrap();
         v.truncate(planes * npix);
@@ -343,24 +354,9 @@ fn leave_one_out_excludes_the_view_from_every_pass() {
     r.render(&cam, &lighting, Mode::Ulr, 1.0, None).unwrap();
     let b = r.buffers_ref().unwrap();
     let g = b.gbuf.download().unwrap();
-    let eye = cam.center();
     let active = r.active_views().to_vec();
     assert!(!active.contains(&0));
-    let inputs = RefInputs {
-        data: &r.scene.data,
-        maps: &t.host,
-        gpos: &g.pos_depth,
-        gnrm: &g.normal,
-        width: cam.width,
-        height: cam.height,
-        eye,
-        active: &active,
-        intensities: &lighting.intensities,
-        alpha_dim: lighting.alpha_dim,
-        exclude: Some(0),
-        emitters: &r.scene.emitters,
-        live: None,
-    };
+    let inputs = ref_inputs(&r, &t, &g, &cam, &active, &lighting);
     let comp = b.composites().unwrap();
     let (bad, _) = mismatch(&comp, &reproject::reference(&inputs), 0.01);
     assert!(bad <= 0.03, "composites: {:.1}% differ", bad * 100.0);
@@ -617,21 +613,7 @@ fn view_culling_matches_cpu_reference_and_culled_frames_too() {
     assert!(!active.is_empty() && active.len() < t.cams.len());
 
     let npix = (size.0 * size.1) as usize;
-    let inputs = RefInputs {
-        data: &r.scene.data,
-        maps: &t.host,
-        gpos: &g.pos_depth,
-        gnrm: &g.normal,
-        width: size.0,
-        height: size.1,
-        eye,
-        active: &active,
-        intensities: &lighting.intensities,
-        alpha_dim: lighting.alpha_dim,
-        exclude: None,
-        emitters: &r.scene.emitters,
-        live: None,
-    };
+    let inputs = ref_inputs(&r, &t, &g, &t.novel, &active, &lighting);
     let comp = b.composites().unwrap();
     let comp_ref = reproject::reference(&inputs);
     let (bad, worst) = mismatch(&comp[..4 * npix], &comp_ref[..4 * npix], 0.01);
@@ -789,25 +771,12 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
     };
     let (irr, mirror) = render(&mut r, &lighting);
     let g = r.buffers_ref().unwrap().gbuf.download().unwrap();
-    let eye = t.novel.center();
     let active = r.active_views().to_vec();
     let lights = r.live.lights();
     let caches = r.live.caches().unwrap();
     assert_eq!(lights.len(), 2);
     assert!(caches.iter().all(|c| c.iter().any(|v| v[0] > 0.0)));
     let inputs = RefInputs {
-        data: &r.scene.data,
-        maps: &t.host,
-        gpos: &g.pos_depth,
-        gnrm: &g.normal,
-        width: t.novel.width,
-        height: t.novel.height,
-        eye,
-        active: &active,
-        intensities: &lighting.intensities,
-        alpha_dim: lighting.alpha_dim,
-        exclude: None,
-        emitters: &r.scene.emitters,
         live: Some(frame::LiveRef {
             mesh: &r.scene.geom,
             layout: r.live.layout(),
@@ -815,6 +784,7 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
             lights: &lights,
             caches: &caches,
         }),
+        ..ref_inputs(&r, &t, &g, &t.novel, &active, &lighting)
     };
     // Same random numbers; a shadow ray grazing an edge may flip: 2% of the scale on ≥ 95%.
     let irr_ref = irradiance::reference(&inputs);

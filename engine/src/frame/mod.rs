@@ -246,7 +246,7 @@ impl FrameScene {
             let views = GpuViews::upload(gpu, &data)?;
             (data, views)
         } else {
-            GpuViews::build_streamed(gpu, &rs, cameras, |j| rgba(j).collect())?
+            GpuViews::build_streamed(gpu, &rs, cameras, |j| Ok(rgba(j).collect()))?
         };
         let maps = maps(host)?;
         let emitters: Vec<GpuLight> = lights.iter().map(GpuLight::new).collect();
