@@ -28,8 +28,7 @@ fn tiny(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>) -> (Tiny, RayScene) {
         .map(|c| synth::shade(&mesh, &albedo, c, &lights[0]))
         .collect();
     let rs = RayScene::new(gpu, &mesh.positions, &mesh.triangles).unwrap();
-    let mut data = ViewData::build(gpu, &rs, &cams, &imgs).unwrap();
-    data.mark_clipped(&clip_some(imgs));
+    let data = ViewData::from_photos(gpu, &rs, &cams, &clip_some(imgs)).unwrap();
     (Tiny { mesh, data }, rs)
 }
 
@@ -1315,10 +1314,12 @@ fn streamed_views_equal_the_uploaded_ones() {
     let whole = GpuViews::upload(&gpu, &t.data).unwrap();
     let n = t.data.pixels();
     let (d, streamed) = GpuViews::build_streamed(&gpu, &rs, &t.data.cameras, |j| {
-        t.data.img[j * n..(j + 1) * n].to_vec()
+        Ok(t.data.img[j * n..(j + 1) * n].to_vec())
     })
     .unwrap();
     assert!(d.pos.is_empty() && d.cameras.len() == t.data.cameras.len());
+    // The photos' clipped pixels (every 31st) are marked (w = 0), the others not.
+    assert!(t.data.clipped(0) && t.data.clipped(31 * 7) && !t.data.clipped(1));
     for (a, b) in [
         (&whole.pos, &streamed.pos),
         (&whole.nrm, &streamed.nrm),

@@ -6,10 +6,11 @@ mod common;
 
 use glam::Vec3;
 use relit_engine::frame::{
-    self, features, irradiance, output, reproject, target_mirror, FrameScene, HostMaps, Lighting,
-    MapFormat, Mode, RefInputs, Renderer,
+    self, features, irradiance, output, reproject, target_mirror, view_cull, FrameScene, HostMaps,
+    Lighting, MapFormat, Mode, RefInputs, Renderer,
 };
 use relit_engine::net::{NetBase, NetConfig, NetKernels, Network, Params, RandomParams, Storage};
+use relit_engine::raster::GbufferPixels;
 use relit_engine::scene::synth::{self, SynthOptions};
 use relit_engine::scene::{Camera, Light, LightShape, Mesh};
 
@@ -127,6 +128,31 @@ fn mismatch(gpu: &[[f32; 4]], cpu: &[[f32; 4]], tol: f32) -> (f32, f32) {
     }
     (bad as f32 / gpu.len().max(1) as f32, worst)
 }
+/// The CPU references' inputs for the frame `r` last rendered from `cam` (without live lights).
+fn ref_inputs<'a>(
+    r: &'a Renderer,
+    t: &'a Tiny,
+    g: &'a GbufferPixels,
+    cam: &Camera,
+    active: &'a [u32],
+    lighting: &'a Lighting,
+) -> RefInputs<'a> {
+    RefInputs {
+        data: &r.scene.data,
+        maps: &t.host,
+        gpos: &g.pos_depth,
+        gnrm: &g.normal,
+        width: cam.width,
+        height: cam.height,
+        eye: cam.center(),
+        active,
+        intensities: &lighting.intensities,
+        alpha_dim: lighting.alpha_dim,
+        exclude: r.exclude,
+        emitters: &r.scene.emitters,
+        live: None,
+    }
+}
 
 /// A renderer without a network over exact maps, two added lights, one of them on.
 fn ulr_renderer(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>, t: &Tiny) -> (Renderer, Lighting) {
@@ -160,23 +186,13 @@ fn frame_passes_match_cpu_references() {
     let npix = (t.novel.width * t.novel.height) as usize;
     let surf = g.pos_depth.iter().filter(|p| p[3] > 0.0).count();
     assert!(surf * 10 > npix * 9, "the novel view must see the room");
-    let eye = t.novel.center();
-    let active = frame::select_active(&r.scene.data.cameras, eye, None);
-    let inputs = RefInputs {
-        data: &r.scene.data,
-        maps: &t.host,
-        gpos: &g.pos_depth,
-        gnrm: &g.normal,
-        width: t.novel.width,
-        height: t.novel.height,
-        eye,
-        active: &active,
-        intensities: &lighting.intensities,
-        alpha_dim: lighting.alpha_dim,
-        exclude: None,
-        emitters: &r.scene.emitters,
-        live: None,
-    };
+    let active = r.active_views().to_vec();
+    assert_eq!(
+        active.len(),
+        r.scene.data.cameras.len(),
+        "6 views: all take part"
+    );
+    let inputs = ref_inputs(&r, &t, &g, &t.novel, &active, &lighting);
     let dl = |buf: &relit_engine::gpu::Buffer, planes: usize| {
         let mut v: Vec<[f32; 4]> = buf.download_vec().unwrap();
         v.truncate(planes * npix);
@@ -338,24 +354,9 @@ fn leave_one_out_excludes_the_view_from_every_pass() {
     r.render(&cam, &lighting, Mode::Ulr, 1.0, None).unwrap();
     let b = r.buffers_ref().unwrap();
     let g = b.gbuf.download().unwrap();
-    let eye = cam.center();
-    let active = frame::select_active(&r.scene.data.cameras, eye, Some(0));
+    let active = r.active_views().to_vec();
     assert!(!active.contains(&0));
-    let inputs = RefInputs {
-        data: &r.scene.data,
-        maps: &t.host,
-        gpos: &g.pos_depth,
-        gnrm: &g.normal,
-        width: cam.width,
-        height: cam.height,
-        eye,
-        active: &active,
-        intensities: &lighting.intensities,
-        alpha_dim: lighting.alpha_dim,
-        exclude: Some(0),
-        emitters: &r.scene.emitters,
-        live: None,
-    };
+    let inputs = ref_inputs(&r, &t, &g, &cam, &active, &lighting);
     let comp = b.composites().unwrap();
     let (bad, _) = mismatch(&comp, &reproject::reference(&inputs), 0.01);
     assert!(bad <= 0.03, "composites: {:.1}% differ", bad * 100.0);
@@ -563,24 +564,118 @@ fn lighting_presets_and_errors() {
     assert_eq!(l.alpha_dim, 0.5);
     let e = Lighting::preset(&scene, "nope").unwrap_err().to_string();
     assert!(e.contains("nope") && e.contains("extra0_on_dimmed"), "{e}");
-    // Per-frame culling keeps at most MAX_ACTIVE views, the nearest ones.
+}
+
+/// View culling (frame/view_cull.rs): the pass's visibility bits match the CPU reference, and a
+/// frame that culls (the threshold lowered so that the 6-view room culls) renders its
+/// composites from its chosen views as the CPU reference does from the same views.
+#[test]
+fn view_culling_matches_cpu_reference_and_culled_frames_too() {
+    let gpu = common::gpu();
+    let t = tiny();
+    let (mut r, lighting) = ulr_renderer(&gpu, &t);
+    // Each of the 6 views alone sees some grid point, so only a budget without a cover (1 view
+    // per point on average, the most relevant first) leaves some out.
+    r.culling = view_cull::Culling {
+        above: 2,
+        budget: 1.0,
+        min_cover: 0,
+    };
+    r.render(&t.novel, &lighting, Mode::Ulr, 1.0, None).unwrap();
+    let active = r.active_views().to_vec();
+    let (seen, points) = r.view_visibility(&t.novel, None).unwrap();
+    let b = r.buffers_ref().unwrap();
+    let g = b.gbuf.download().unwrap();
+    let size = (t.novel.width, t.novel.height);
+    let grid = view_cull::grid(size.0, size.1);
+    let (seen_ref, points_ref) = view_cull::reference(&r.scene.data, &g.pos_depth, size, grid);
+    assert_eq!(
+        points, points_ref,
+        "grid points are copied from the G-buffer"
+    );
+    let ones: u32 = seen_ref.iter().map(|b| b.count_ones()).sum();
+    let differ: u32 = (seen.iter().zip(&seen_ref))
+        .map(|(a, b)| (a ^ b).count_ones())
+        .sum();
+    eprintln!("view culling: {ones} (view, point) pairs seen, {differ} differ");
+    assert!(ones > 200, "the views see the grid");
+    // The depth test can flip where GPU and CPU projections differ in the last bit.
+    assert!(
+        differ * 100 <= ones,
+        "{differ} of {ones} visibility bits differ"
+    );
+    let eye = t.novel.center();
+    assert_eq!(
+        active,
+        view_cull::choose(&r.culling, &seen, &points, &r.scene.data.cameras, eye, None)
+    );
+    eprintln!("active views: {active:?}");
+    assert!(!active.is_empty() && active.len() < t.cams.len());
+
+    let npix = (size.0 * size.1) as usize;
+    let inputs = ref_inputs(&r, &t, &g, &t.novel, &active, &lighting);
+    let comp = b.composites().unwrap();
+    let comp_ref = reproject::reference(&inputs);
+    let (bad, worst) = mismatch(&comp[..4 * npix], &comp_ref[..4 * npix], 0.01);
+    eprintln!(
+        "culled composites I_1..4: {:.2}% over, worst {worst:.4}",
+        bad * 100.0
+    );
+    assert!(bad <= 0.03, "culled composites: {:.1}% differ", bad * 100.0);
+}
+
+/// The choice of active views: every grid point some view sees keeps up to MIN_COVER views,
+/// however irrelevant the only view that sees it; then the views nearest the novel camera, within
+/// the budget; never the left-out view, never a view that sees no point.
+#[test]
+fn view_choice_covers_every_seen_point_within_budget() {
+    let c = view_cull::Culling::default();
+    assert!(!c.needed(32, None));
+    assert!(c.needed(33, None));
+    assert!(!c.needed(33, Some(3)));
+    assert!(c.needed(33, Some(40)));
+    // 100 cameras on a line looking at +z; 64 points on a wall at z = 5.
     let cams: Vec<Camera> = (0..100)
         .map(|i| {
-            Camera::look_at(
-                Vec3::new(i as f32, 0.0, 0.0),
-                Vec3::new(i as f32, 0.0, 1.0),
-                Vec3::Y,
-                8,
-                8,
-                8.0,
-            )
+            let c = Vec3::new(i as f32 * 0.1, 0.0, 0.0);
+            Camera::look_at(c, c + Vec3::Z, Vec3::Y, 8, 8, 8.0)
         })
         .collect();
-    let a = frame::select_active(&cams, Vec3::new(10.0, 0.0, 0.0), None);
-    assert_eq!(a.len(), frame::MAX_ACTIVE);
-    assert!(a.contains(&10) && a.contains(&0) && !a.contains(&99));
-    let a = frame::select_active(&cams, Vec3::new(10.0, 0.0, 0.0), Some(10));
-    assert!(a.len() == frame::MAX_ACTIVE && !a.contains(&10));
+    let points: Vec<[f32; 4]> = (0..64)
+        .map(|s| [(s % 8) as f32 * 0.5, (s / 8) as f32 * 0.5 - 2.0, 5.0, 1.0])
+        .collect();
+    let nw = 2;
+    // Every view but 99 sees points 1..63; point 0 only view 99 sees; view 98 sees nothing.
+    let mut seen = vec![0u32; nw * cams.len()];
+    for j in 0..cams.len() {
+        let bits = &mut seen[j * nw..(j + 1) * nw];
+        match j {
+            99 => bits[0] = 1,
+            98 => {}
+            _ => {
+                bits[0] = !1;
+                bits[1] = !0;
+            }
+        }
+    }
+    let eye = Vec3::new(3.0, 0.0, 0.0);
+    let a = view_cull::choose(&c, &seen, &points, &cams, eye, Some(30));
+    eprintln!("chosen: {a:?}");
+    assert!(a.windows(2).all(|w| w[0] < w[1]), "ascending");
+    assert!(a.contains(&99), "the only view of point 0 takes part");
+    assert!(!a.contains(&98) && !a.contains(&30));
+    assert!(a.len() <= frame::MAX_ACTIVE);
+    // Points 1..63 are seen by every chosen view but 99; the budget bounds their count.
+    let budget = (view_cull::VIEW_BUDGET * 64.0) as usize;
+    let load = (a.len() - 1) * 63 + 1;
+    assert!(load <= budget, "{} views over the budget", a.len());
+    assert!(a.len() > view_cull::MIN_COVER as usize);
+    assert!(load + 63 > budget, "the budget is used");
+    // The nearest views to the eye (x = 3: view 30, left out) come first.
+    for j in [29, 31, 28, 32] {
+        assert!(a.contains(&j), "view {j} is among the nearest");
+    }
+    assert!(!a.contains(&0) && !a.contains(&97));
 }
 
 /// Lights moved or added in the viewer (frame/live.rs): their E_add, evaluated at the novel
@@ -676,25 +771,12 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
     };
     let (irr, mirror) = render(&mut r, &lighting);
     let g = r.buffers_ref().unwrap().gbuf.download().unwrap();
-    let eye = t.novel.center();
-    let active = frame::select_active(&r.scene.data.cameras, eye, None);
+    let active = r.active_views().to_vec();
     let lights = r.live.lights();
     let caches = r.live.caches().unwrap();
     assert_eq!(lights.len(), 2);
     assert!(caches.iter().all(|c| c.iter().any(|v| v[0] > 0.0)));
     let inputs = RefInputs {
-        data: &r.scene.data,
-        maps: &t.host,
-        gpos: &g.pos_depth,
-        gnrm: &g.normal,
-        width: t.novel.width,
-        height: t.novel.height,
-        eye,
-        active: &active,
-        intensities: &lighting.intensities,
-        alpha_dim: lighting.alpha_dim,
-        exclude: None,
-        emitters: &r.scene.emitters,
         live: Some(frame::LiveRef {
             mesh: &r.scene.geom,
             layout: r.live.layout(),
@@ -702,6 +784,7 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
             lights: &lights,
             caches: &caches,
         }),
+        ..ref_inputs(&r, &t, &g, &t.novel, &active, &lighting)
     };
     // Same random numbers; a shadow ray grazing an edge may flip: 2% of the scale on ≥ 95%.
     let irr_ref = irradiance::reference(&inputs);

@@ -39,6 +39,7 @@ pub fn push_layouts() -> Vec<gpu::PushLayout> {
         crate::frame::target_mirror::PUSH_LAYOUT,
         crate::frame::features::PUSH_LAYOUT,
         crate::frame::reproject::PUSH_LAYOUT,
+        crate::frame::view_cull::PUSH_LAYOUT,
         crate::frame::irradiance::PUSH_LAYOUT,
         crate::bake::surface_cache::PUSH_LAYOUT,
         crate::bake::source_irradiance::PUSH_LAYOUT,

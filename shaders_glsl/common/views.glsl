@@ -53,10 +53,12 @@ int best_view(vec3 y, vec3 dir, uint exclude, uint nviews, uint W, uint H) {
     int best_px = -1;
     for (uint j = 0u; j < nviews; ++j) {
         if (j == exclude) continue;
-        int q = visible_pixel(j, y, W, H);
-        if (q < 0) continue;
+        // The direction first: the depth test (a gather from the view's G-buffer) only for a
+        // view that would beat the best so far.
         float c = dot(normalize(y - cam_center(cams[j])), dir);
-        if (c > best) { best = c; best_px = q; }
+        if (c <= best) continue;
+        int q = visible_pixel(j, y, W, H);
+        if (q >= 0) { best = c; best_px = q; }
     }
     return best_px;
 }

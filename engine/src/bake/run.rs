@@ -17,6 +17,7 @@ use super::{
     GpuCacheLayout, GpuLight, GpuViews, Mirror, SourceCache, SourceIrradiance, SurfaceCache,
     ViewData,
 };
+use crate::bake::views::photo_rgba;
 use crate::error::{Error, Result};
 use crate::gpu::{vk, Buffer, Gpu, Graph, MemoryLocation, RayScene};
 use crate::scene::image::load_rgb;
@@ -195,18 +196,22 @@ pub fn bake_lights(
 struct Setup {
     geom: crate::scene::Mesh,
     mesh: RayScene,
+    /// The views' cameras and size (no pixels: those are in `views`).
     data: ViewData,
     views: GpuViews,
 }
 
 impl Setup {
     fn new(gpu: &Arc<Gpu>, scene: &Scene, p: &BakeParams) -> Result<Setup> {
-        let photos = scene.view_photos()?;
+        let scales = scene.photo_scales()?;
         let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
         let geom = bake_mesh(scene, p);
         let mesh = RayScene::new(gpu, &geom.positions, &geom.triangles)?;
-        let data = ViewData::from_photos(gpu, &mesh, &cams, &photos)?;
-        let views = GpuViews::upload(gpu, &data)?;
+        // Straight to the device, view by view: the stages read the views there, and a host
+        // copy of every view's G-buffer and image (52 B a pixel) would double the bake's memory.
+        let (data, views) = GpuViews::build_streamed(gpu, &mesh, &cams, |j| {
+            Ok(photo_rgba(&scene.view_photo(j, scales[j])?).collect())
+        })?;
         Ok(Setup {
             geom,
             mesh,

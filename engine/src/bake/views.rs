@@ -9,7 +9,7 @@ use glam::{Vec2, Vec3};
 use crate::error::{Error, Result};
 use crate::gpu::{vk, Bind, Buffer, Gpu, MemoryLocation, RayScene};
 use crate::raster::GbufferPass;
-use crate::scene::{Camera, GpuCamera, RgbImage};
+use crate::scene::{Camera, GpuCamera, Photo, RgbImage};
 
 /// Near and far planes of the per-view depth maps (m).
 pub const NEAR: f32 = 0.02;
@@ -30,6 +30,13 @@ pub struct ViewData {
     pub tri: Vec<u32>,
 }
 
+/// A photo as the views hold it: linear RGB, w = 1, or 0 where the photo clipped.
+pub fn photo_rgba(photo: &Photo) -> impl Iterator<Item = [f32; 4]> + '_ {
+    let clipped = |i: usize| photo.clipped.get(i).copied().unwrap_or(false);
+    (photo.image.pixels.iter().enumerate())
+        .map(move |(i, p)| [p[0], p[1], p[2], if clipped(i) { 0.0 } else { 1.0 }])
+}
+
 impl ViewData {
     /// Rasterizes the proxy mesh from every camera and gathers the images.
     pub fn build(
@@ -48,19 +55,11 @@ impl ViewData {
         gpu: &Arc<Gpu>,
         mesh: &RayScene,
         cameras: &[Camera],
-        photos: &[crate::scene::Photo],
+        photos: &[Photo],
     ) -> Result<ViewData> {
-        let mut d = ViewData::build_with(gpu, mesh, cameras, |j, img| {
-            img.extend(
-                photos[j]
-                    .image
-                    .pixels
-                    .iter()
-                    .map(|p| [p[0], p[1], p[2], 1.0]),
-            )
-        })?;
-        d.mark_clipped(photos);
-        Ok(d)
+        ViewData::build_with(gpu, mesh, cameras, |j, img| {
+            img.extend(photo_rgba(&photos[j]))
+        })
     }
 
     /// `build` with view `j`'s image appended by `image(j, img)` as RGBA (w = 1): the frame
@@ -99,16 +98,6 @@ impl ViewData {
 
     pub fn pixels(&self) -> usize {
         (self.width * self.height) as usize
-    }
-
-    /// Marks the photos' clipped pixels (w = 0 in `img`); `photos` in view order.
-    pub fn mark_clipped(&mut self, photos: &[crate::scene::Photo]) {
-        let n = self.pixels();
-        for (j, ph) in photos.iter().enumerate() {
-            for (i, _) in ph.clipped.iter().enumerate().filter(|(_, &c)| c) {
-                self.img[j * n + i][3] = 0.0;
-            }
-        }
     }
 
     /// Whether global pixel `q` clipped in its photo.
@@ -184,14 +173,14 @@ impl GpuViews {
     }
 
     /// The views straight onto the device, one at a time: each view's G-buffer and its image
-    /// (`image(j)`, RGBA) go to their place in the device buffers, so no host copy of all views
+    /// (`image(j)`, RGBA, loaded when asked for) go to their place in the device buffers, so no host copy of all views
     /// is ever held (the frame; the bake and the CPU references keep [`ViewData`]'s). The
     /// `ViewData` returned holds the cameras only.
     pub fn build_streamed(
         gpu: &Arc<Gpu>,
         mesh: &RayScene,
         cameras: &[Camera],
-        mut image: impl FnMut(usize) -> Vec<[f32; 4]>,
+        mut image: impl FnMut(usize) -> Result<Vec<[f32; 4]>>,
     ) -> Result<(ViewData, GpuViews)> {
         let (width, height) = one_size(cameras)?;
         let (n, nv) = ((width * height) as u64, cameras.len() as u64);
@@ -210,7 +199,7 @@ impl GpuViews {
             let at = |bytes: u64| j as u64 * n * bytes;
             maps[0].upload_at(at(16), bytemuck::cast_slice(&g.pos_depth))?;
             maps[1].upload_at(at(16), bytemuck::cast_slice(&g.normal))?;
-            maps[2].upload_at(at(16), bytemuck::cast_slice(&image(j)))?;
+            maps[2].upload_at(at(16), bytemuck::cast_slice(&image(j)?))?;
             tri.upload_at(at(4), bytemuck::cast_slice(&g.tri))?;
         }
         let d = ViewData::cameras_only(cameras)?;

@@ -10,6 +10,7 @@ pub mod maps;
 pub mod output;
 pub mod reproject;
 pub mod target_mirror;
+pub mod view_cull;
 
 use std::path::Path;
 use std::sync::Arc;
@@ -27,8 +28,8 @@ use crate::net::{Network, Storage, Tensor, INPUT_CHANNELS};
 use crate::raster::{Gbuffer, GbufferPass};
 use crate::scene::{Camera, Light, Scene};
 
-/// At most this many input views take part in one frame (`constants.table`): the views whose
-/// cameras are nearest the novel camera.
+/// At most this many input views take part in one frame (`constants.table`; which ones:
+/// [`view_cull`]).
 pub const MAX_ACTIVE: usize = crate::constants::MAX_ACTIVE as usize;
 
 /// The user's lighting: one intensity per added light (the scene's non-original lights, in
@@ -112,23 +113,6 @@ pub fn added_lights(scene: &Scene) -> Vec<String> {
         .filter(|l| !l.original)
         .map(|l| l.name.clone())
         .collect()
-}
-
-/// The `MAX_ACTIVE` views nearest the novel camera, in view order, without `exclude`.
-pub fn select_active(cameras: &[Camera], eye: Vec3, exclude: Option<u32>) -> Vec<u32> {
-    let mut idx: Vec<u32> = (0..cameras.len() as u32)
-        .filter(|&i| Some(i) != exclude)
-        .collect();
-    if idx.len() > MAX_ACTIVE {
-        idx.sort_by(|&a, &b| {
-            let da = cameras[a as usize].center().distance_squared(eye);
-            let db = cameras[b as usize].center().distance_squared(eye);
-            da.total_cmp(&db).then(a.cmp(&b))
-        });
-        idx.truncate(MAX_ACTIVE);
-        idx.sort();
-    }
-    idx
 }
 
 /// What the CPU references read: the views, the host maps, the novel G-buffer and the frame's
@@ -262,7 +246,7 @@ impl FrameScene {
             let views = GpuViews::upload(gpu, &data)?;
             (data, views)
         } else {
-            GpuViews::build_streamed(gpu, &rs, cameras, |j| rgba(j).collect())?
+            GpuViews::build_streamed(gpu, &rs, cameras, |j| Ok(rgba(j).collect()))?
         };
         let maps = maps(host)?;
         let emitters: Vec<GpuLight> = lights.iter().map(GpuLight::new).collect();
@@ -462,6 +446,9 @@ pub struct FrameBuffers {
     pub irr: Buffer,
     pub mirror: Buffer,
     pub active: Buffer,
+    /// The view culling's visibility bits and grid points (host-readable).
+    pub cull_seen: Buffer,
+    pub cull_points: Buffer,
     pub intensity: Buffer,
     pub input: Tensor,
     pub hdr: Buffer,
@@ -494,6 +481,11 @@ pub struct Renderer {
     target_mirror: Pipeline,
     features: Pipeline,
     output: Pipeline,
+    view_cull: Pipeline,
+    /// The active views of the last frame, ascending.
+    active: Vec<u32>,
+    /// When frames choose their active views ([`view_cull`]) and how many.
+    pub culling: view_cull::Culling,
     /// Buffers per resolution, the last frame's first: the viewer alternates a reduced
     /// resolution while moving with the full one when still, so two stay allocated.
     bufs: Vec<FrameBuffers>,
@@ -507,6 +499,9 @@ pub struct Renderer {
     /// since `relit dump` and the tests read those passes' buffers after a ULR frame.
     pub display_only: bool,
 }
+
+/// The novel view's G-buffer, as the frame's passes name it.
+const GBUFFER: [&str; 3] = ["g_pos", "g_nrm", "g_tri"];
 
 /// Near and far planes of the novel view's G-buffer (m).
 pub const NEAR: f32 = 0.02;
@@ -545,6 +540,9 @@ impl Renderer {
             target_mirror: Pipeline::compute(gpu, target_mirror::SHADER)?,
             features: Pipeline::compute(gpu, feat)?,
             output: Pipeline::compute(gpu, out)?,
+            view_cull: Pipeline::compute(gpu, view_cull::SHADER)?,
+            active: Vec::new(),
+            culling: view_cull::Culling::default(),
             gpu: gpu.clone(),
             scene,
             net,
@@ -585,6 +583,16 @@ impl Renderer {
                 MemoryLocation::GpuOnly,
             )
         };
+        let readable = |name: &str, size: u64| {
+            Buffer::new(
+                gpu,
+                name,
+                size.max(16),
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                MemoryLocation::GpuToCpu,
+            )
+        };
+        let grid = view_cull::grid(width, height);
         let nl = self.scene.lights.len().max(1) as u64;
         Ok(FrameBuffers {
             width,
@@ -594,6 +602,11 @@ impl Renderer {
             irr: buf("frame irradiance", irradiance::PLANES as u64 * n * 16)?,
             mirror: buf("frame target mirror", n * 16)?,
             active: buf("frame active views", MAX_ACTIVE as u64 * 4)?,
+            cull_seen: readable(
+                "view culling bits",
+                (view_cull::words(grid) * self.scene.views.count as usize * 4) as u64,
+            )?,
+            cull_points: readable("view culling points", (grid.0 * grid.1 * 16) as u64)?,
             intensity: buf("frame intensities", nl * 4)?,
             input: Tensor::new(
                 gpu,
@@ -671,7 +684,7 @@ impl Renderer {
         lighting: &Lighting,
         mode: Mode,
         exposure: f32,
-        timer: Option<&mut Timer>,
+        mut timer: Option<&mut Timer>,
     ) -> Result<()> {
         if mode.needs_network() && self.net.is_none() {
             return Err(Error::Other(format!(
@@ -695,10 +708,11 @@ impl Renderer {
         }
         let (width, height) = (cam.width, cam.height);
         self.buffers(width, height)?;
+        let culled = self.cull_views(cam, timer.as_deref_mut())?;
         let b = &self.bufs[0];
         let eye = cam.center();
-        let active = select_active(&self.scene.data.cameras, eye, self.exclude);
-        b.active.upload(bytemuck::cast_slice(&active))?;
+        let active = &self.active;
+        b.active.upload(bytemuck::cast_slice(active))?;
         let mut ints = lighting.intensities.clone();
         ints.resize(self.scene.lights.len().max(1), 0.0);
         b.intensity.upload(bytemuck::cast_slice(&ints))?;
@@ -772,12 +786,11 @@ impl Renderer {
         let res = gpu.submit(|cmd| -> Result<()> {
             let mut g = Graph::new(&gpu, cmd, timer);
             self.resources(&mut g, b);
-            g.external(
-                Some("g-buffer"),
-                &[],
-                &["g_pos", "g_nrm", "g_tri"],
-                |cmd, _| self.gbuffer.record(cmd, &s.mesh, cam, NEAR, FAR, &b.gbuf),
-            )?;
+            if culled {
+                g.written_before(&GBUFFER)?;
+            } else {
+                self.record_gbuffer(&mut g, b, cam)?;
+            }
             g.dispatch("reproject", &self.reproject, bytes_of(&reproject), threads)?;
             g.dispatch(
                 "irradiance",
@@ -801,6 +814,82 @@ impl Renderer {
         res
     }
 
+    /// Chooses the frame's active views (`self.active`). With more views than `culling.above`
+    /// this renders the G-buffer and the view culling pass in a submission of their own and
+    /// reads the pass back (returns true: the G-buffer is done).
+    fn cull_views(&mut self, cam: &Camera, timer: Option<&mut Timer>) -> Result<bool> {
+        let n = self.scene.data.cameras.len();
+        if !self.culling.needed(n, self.exclude) {
+            self.active = (0..n as u32).filter(|&i| Some(i) != self.exclude).collect();
+            return Ok(false);
+        }
+        let (seen, points) = self.view_visibility(cam, timer)?;
+        let cameras = &self.scene.data.cameras;
+        self.active = view_cull::choose(
+            &self.culling,
+            &seen,
+            &points,
+            cameras,
+            cam.center(),
+            self.exclude,
+        );
+        Ok(true)
+    }
+
+    /// Renders `cam`'s G-buffer and the view culling pass; returns its visibility bits and grid
+    /// points (as [`view_cull::reference`]). Call after `buffers` for `cam`'s size.
+    pub fn view_visibility(
+        &self,
+        cam: &Camera,
+        timer: Option<&mut Timer>,
+    ) -> Result<(Vec<u32>, Vec<[f32; 4]>)> {
+        let b = self.last()?;
+        let n = self.scene.data.cameras.len();
+        let grid = view_cull::grid(cam.width, cam.height);
+        let nw = view_cull::words(grid) as u32;
+        let push = view_cull::Push {
+            eye: cam.center().extend(1.0).into(),
+            width: cam.width,
+            height: cam.height,
+            grid_w: grid.0,
+            grid_h: grid.1,
+            nviews: n as u32,
+            view_w: self.scene.views.width,
+            view_h: self.scene.views.height,
+            words: nw,
+        };
+        let gpu = self.gpu.clone();
+        gpu.submit(|cmd| -> Result<()> {
+            let mut g = Graph::new(&gpu, cmd, timer);
+            self.resources(&mut g, b);
+            self.record_gbuffer(&mut g, b, cam)?;
+            let threads = (nw * n as u32, 1, 1);
+            g.dispatch("view culling", &self.view_cull, bytes_of(&push), threads)
+        })??;
+        let mut seen: Vec<u32> = bytemuck::pod_collect_to_vec(&b.cull_seen.download()?);
+        let mut points: Vec<[f32; 4]> = b.cull_points.download_vec()?;
+        seen.truncate(nw as usize * n);
+        points.truncate((grid.0 * grid.1) as usize);
+        Ok((seen, points))
+    }
+
+    fn record_gbuffer<'a>(
+        &'a self,
+        g: &mut Graph<'a, '_>,
+        b: &'a FrameBuffers,
+        cam: &Camera,
+    ) -> Result<()> {
+        let mesh = &self.scene.mesh;
+        g.external(Some("g-buffer"), &[], &GBUFFER, |cmd, _| {
+            self.gbuffer.record(cmd, mesh, cam, NEAR, FAR, &b.gbuf)
+        })
+    }
+
+    /// The active views of the last frame, ascending (what its composites read).
+    pub fn active_views(&self) -> &[u32] {
+        &self.active
+    }
+
     /// The frame's resources by the names its shaders give them.
     fn resources<'a>(&'a self, g: &mut Graph<'a, '_>, b: &'a FrameBuffers) {
         let s = &self.scene;
@@ -813,6 +902,8 @@ impl Renderer {
             .set("g_nrm", Bind::StorageImage(b.gbuf.normal.view))
             .set("g_tri", Bind::StorageImage(b.gbuf.tri.view))
             .set("Active", Bind::Buffer(&b.active))
+            .set("CullSeen", Bind::Buffer(&b.cull_seen))
+            .set("CullPoints", Bind::Buffer(&b.cull_points))
             .set("tex_img", Bind::Sampled(s.maps.img.view, sm))
             .set("tex_msrc", Bind::Sampled(s.maps.msrc.view, sm))
             .set("tex_esrc", Bind::Sampled(s.maps.esrc.view, sm))

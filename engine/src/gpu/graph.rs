@@ -123,6 +123,19 @@ impl<'a, 't> Graph<'a, 't> {
         Ok(())
     }
 
+    /// Resources an earlier submission wrote (the frame's G-buffer, rendered before the view
+    /// culling's read-back): their first use here waits for those writes.
+    pub fn written_before(&mut self, names: &[&str]) -> Result<()> {
+        for n in names {
+            let b = self
+                .resources
+                .get(n)
+                .ok_or_else(|| Error::Other(format!("no resource named \"{n}\" in the graph")))?;
+            self.written.insert(handle(b));
+        }
+        Ok(())
+    }
+
     /// The table's resources that `p` declares; each declared name must be in the table.
     fn binds_for(&self, p: &Pipeline) -> Result<Vec<(&'a str, Bind<'a>)>> {
         (p.names.keys())

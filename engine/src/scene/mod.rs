@@ -323,20 +323,24 @@ impl Scene {
     /// The views' photos on one radiance scale (EXIF exposure), with their clipped pixels.
     pub fn view_photos(&self) -> Result<Vec<Photo>> {
         let scales = exposure::scales(&self.views)?;
-        (self.views.iter().zip(scales))
-            .map(|(v, s)| {
-                let mut photo = image::load_photo(&v.image)?;
-                if s != 1.0 {
-                    photo
-                        .image
-                        .pixels
-                        .iter_mut()
-                        .flatten()
-                        .for_each(|c| *c *= s);
-                }
-                Ok(photo)
-            })
+        (0..self.views.len())
+            .map(|j| self.view_photo(j, scales[j]))
             .collect()
+    }
+
+    /// The scale of each view's photo onto one radiance scale (EXIF exposure).
+    pub fn photo_scales(&self) -> Result<Vec<f32>> {
+        exposure::scales(&self.views)
+    }
+
+    /// View `j`'s photo times `scale` (from [`Scene::photo_scales`]): one photo at a time,
+    /// where a capture's photos would not all fit.
+    pub fn view_photo(&self, j: usize, scale: f32) -> Result<Photo> {
+        let mut photo = image::load_photo(&self.views[j].image)?;
+        if scale != 1.0 {
+            (photo.image.pixels.iter_mut().flatten()).for_each(|c| *c *= scale);
+        }
+        Ok(photo)
     }
 
     /// Loads every image and checks it against its camera (size, finite values).
