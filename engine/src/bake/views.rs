@@ -173,9 +173,9 @@ impl GpuViews {
     }
 
     /// The views straight onto the device, one at a time: each view's G-buffer and its image
-    /// (`image(j)`, RGBA, loaded when asked for) go to their place in the device buffers, so no host copy of all views
-    /// is ever held (the frame; the bake and the CPU references keep [`ViewData`]'s). The
-    /// `ViewData` returned holds the cameras only.
+    /// (`image(j)`, RGBA, loaded when asked for) go to their place in the device buffers, so no
+    /// host copy of all views is ever held (the frame and the bake; the CPU references keep
+    /// [`ViewData`]'s). The `ViewData` returned holds the cameras only.
     pub fn build_streamed(
         gpu: &Arc<Gpu>,
         mesh: &RayScene,
