@@ -574,24 +574,13 @@ impl Renderer {
     fn new_buffers(&self, width: u32, height: u32) -> Result<FrameBuffers> {
         let gpu = &self.gpu;
         let n = (width * height) as u64;
-        let buf = |name: &str, size: u64| {
-            Buffer::new(
-                gpu,
-                name,
-                size.max(16),
-                vk::BufferUsageFlags::STORAGE_BUFFER,
-                MemoryLocation::GpuOnly,
-            )
+        let storage = |name: &str, size: u64, at: MemoryLocation| {
+            let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+            Buffer::new(gpu, name, size.max(16), usage, at)
         };
-        let readable = |name: &str, size: u64| {
-            Buffer::new(
-                gpu,
-                name,
-                size.max(16),
-                vk::BufferUsageFlags::STORAGE_BUFFER,
-                MemoryLocation::GpuToCpu,
-            )
-        };
+        let buf = |name: &str, size: u64| storage(name, size, MemoryLocation::GpuOnly);
+        // The view culling's bits are read back by the host.
+        let readable = |name: &str, size: u64| storage(name, size, MemoryLocation::GpuToCpu);
         let grid = view_cull::grid(width, height);
         let nl = self.scene.lights.len().max(1) as u64;
         Ok(FrameBuffers {
