@@ -536,3 +536,53 @@ fn varied_finishes_add_coloured_walls_a_mirror_and_a_cabinet_and_change_nothing_
         "{saturated} of 32 walls saturated"
     );
 }
+
+/// `Finishes::Sparse` is the varied room of the seed with only the shell, table, chair, mirror
+/// and cabinet left, nothing textured, the same lights, and no material nothing uses.
+#[test]
+fn sparse_finishes_keep_the_varied_shell_and_few_objects_all_untextured() {
+    for seed in 1..=8 {
+        let opts = |finishes| RoomOptions {
+            finishes,
+            ..small()
+        };
+        let varied = room::generate(seed, &opts(room::Finishes::Varied));
+        let sparse = room::generate(seed, &opts(room::Finishes::Sparse));
+        assert_eq!(
+            format!("{:?}", varied.lights),
+            format!("{:?}", sparse.lights)
+        );
+        assert!(sparse.objects.len() < varied.objects.len(), "seed {seed}");
+        for o in &sparse.objects {
+            let v = varied.objects.iter().find(|v| v.name == o.name).unwrap();
+            assert_eq!(format!("{:?}", o.prim), format!("{:?}", v.prim));
+            assert_eq!(o.material, v.material, "{}", o.name);
+            assert_ne!(o.surface, Surface::Textured, "{}", o.name);
+            let keep = ["table_", "chair_", "mirror", "cabinet"];
+            assert!(
+                o.shell || keep.iter().any(|k| o.name.starts_with(k)),
+                "seed {seed}: {} kept",
+                o.name
+            );
+        }
+        for o in varied.objects.iter().filter(|o| o.shell) {
+            assert!(
+                sparse.objects.iter().any(|s| s.name == o.name),
+                "{}",
+                o.name
+            );
+        }
+        for (name, m) in &sparse.materials {
+            assert!(
+                m.texture.is_none() && m.doc.albedo_texture.is_none(),
+                "{name}"
+            );
+            assert!(
+                sparse.objects.iter().any(|o| o.material == *name),
+                "{name} unused"
+            );
+            let a = varied.materials[name].doc.albedo;
+            assert_eq!(m.doc.albedo, a, "{name}: the texture's mean");
+        }
+    }
+}

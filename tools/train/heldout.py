@@ -13,7 +13,12 @@ Sets (fixed here, so that every report speaks of the same rooms):
 - validation: what checkpoints and designs are chosen on: scenegen seeds 800000–800002;
   800002 has scenegen's varied finishes (coloured walls, a near-mirror, a lacquered cabinet),
   so that a choice meets what hand_room2 tests (added 2026-12-03: on hand_room2 the s7-clean
-  network was 2–3 dB below ratio while it beat ratio on both classic validation rooms).
+  network was 2–3 dB below ratio while it beat ratio on both classic validation rooms);
+  800003 has scenegen's sparse finishes (untextured, few objects: the hand rooms' kind, added
+  2026-12-03 when 800002 turned out not to reproduce hand_room2's failure); 800004 too, with
+  the true surfaces as its proxy (proxy error 0) as the hand rooms have, where the ratio image
+  is close to the truth (added the same day: the s7-clean network beat ratio on 800003, whose
+  MVS-like proxy leaves the ratio image ~10 dB further from the truth than hand_room2's).
 - tiny: one small room (the evaluation's own test).
 
 Per room OUT/<room>/ holds a scene (scene.json, meshes, images/ denoised as a camera's photos
@@ -56,6 +61,9 @@ SETS = {
         ("sg800000", "scenegen:800000", dict(light_views=2, tint="green")),
         ("sg800001", "scenegen:800001", dict(light_views=0, tint="warm")),
         ("sg800002", "scenegen:800002", dict(light_views=1, tint="blue", finishes="varied")),
+        ("sg800003", "scenegen:800003", dict(light_views=2, tint="red", finishes="sparse")),
+        ("sg800004", "scenegen:800004", dict(light_views=3, tint="cold", finishes="sparse",
+                                             proxy_error=0)),
     ],
     "tiny": [
         ("sg700100", "scenegen:700100", dict(light_views=1, tint="red", views=6, res=(48, 36),
@@ -120,7 +128,8 @@ def generate(room_dir, source, o, bins):
         run([bins["scenegen"], "room", room_dir, "--seed", seed, "--views", str(o.get("views", VIEWS)),
              "--res", f"{w}x{h}", "--extra-lights", "1", "--test-views",
              str(o.get("test_views", TEST_VIEWS)), "--light-views", str(o["light_views"]),
-             "--finishes", o.get("finishes", "classic")], "scenegen")
+             "--finishes", o.get("finishes", "classic"),
+             "--proxy-error", str(o.get("proxy_error", 1))], "scenegen")
     else:
         shutil.copytree(os.path.join(ROOT, source), room_dir)
     path = os.path.join(room_dir, "scene.json")

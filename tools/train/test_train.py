@@ -83,6 +83,29 @@ class TrainerTest(unittest.TestCase):
         for step, lr in enumerate([2.5e-5, 5e-5, 7.5e-5, 1e-4, 1e-4]):
             self.assertAlmostEqual(T.learning_rate(a, step), lr, places=12)
 
+    def test_the_correction_penalty_is_zero_for_the_ratio_image_and_counts_covered_pixels(self):
+        sys.path.insert(0, HERE)
+        import torch
+        import model as M
+        import train as T
+        net = M.RelightNet(width=8, trunk_blocks=1, level_blocks=1, tail_blocks=1, base="ratio")
+        x = torch.rand(1, net.config["in_channels"], 32, 32)
+        x[:, M.I1, :16] = 0                     # the top half is a hole
+        self.assertEqual(T.correction_l1(net(x), x).item(), 0.0)
+        with torch.no_grad():
+            net.out_conv.bias.fill_(0.5)        # every output channel off by 0.5
+        self.assertAlmostEqual(T.correction_l1(net(x), x).item(), 0.5, places=5)
+        out = net(x)
+        out[:, :, :16] += 10                    # a change on holes only costs nothing
+        self.assertAlmostEqual(T.correction_l1(out, x).item(), 0.5, places=5)
+        run = self.run_dir("penalised")
+        r = train(self.data, run, "--steps", "3", "--base", "ratio", "--correction-l1", "0.5")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertTrue(all("correction_l1" in row for row in log(run) if "loss" in row))
+        r = train(self.data, run, "--steps", "4", "--base", "ratio", "--resume")
+        self.assertNotEqual(r.returncode, 0)     # resumed without the term it was trained with
+        self.assertIn("correction_l1", r.stderr)
+
     def test_a_signal_stops_the_run_at_a_checkpoint_that_resumes(self):
         run = self.run_dir("signal")
         args = [sys.executable, os.path.join(HERE, "train.py"), "--data", self.data, "--out", run,

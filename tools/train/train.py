@@ -86,6 +86,15 @@ def losses(out, d, t, lambda_vdep=10.0, vgg=None, lambda_vgg=0.0):
     return loss
 
 
+def correction_l1(out, x):
+    """Mean |correction| on covered pixels of a base-"ratio" network: what it adds to the ratio
+    image (diffuse) and its view-dependent output. As a penalty it keeps a correction only where
+    the data terms pay for it, so that surfaces the ratio image already renders stay as they are."""
+    covered = (x[:, M.I1] != 0).any(1, keepdim=True)
+    c = torch.cat([out[:, :3] - M.ratio_base(x), out[:, 3:6]], 1)
+    return (c.abs() * covered).sum() / (covered.sum() * c.shape[1]).clamp(min=1)
+
+
 def covered_psnr(img, t, x):
     """log-PSNR of a tonemapped image on the pixels an input view covers (I_1 not black), as
     evaluate.py scores them; None when no pixel is covered."""
@@ -224,6 +233,8 @@ def parse_args():
                          "initialization (zero for --base ratio)")
     ap.add_argument("--device", default="cpu",
                     help="torch device: cpu or cuda (under torchrun, each process takes its own GPU)")
+    ap.add_argument("--correction-l1", type=float, default=0.0, metavar="λ",
+                    help="base ratio: λ · mean |correction| on covered pixels (0: off)")
     ap.add_argument("--vgg", type=float, default=0.1, help="λ_vgg of the perceptual terms (0: off)")
     ap.add_argument("--multiview", type=float, default=1.0,
                     help="weight of the multi-view consistency term (0: off)")
@@ -336,6 +347,12 @@ def step_loss(a, net, disc, vgg, train, nbr, warps, i, lighting, rng, row):
     else:
         out = net(x)
     loss = losses(out, d, t, vgg=vgg, lambda_vgg=a.vgg)
+    if a.correction_l1 > 0:
+        if a.base != "ratio":
+            sys.exit("--correction-l1 needs --base ratio (a correction is relative to it)")
+        c = correction_l1(out, x)
+        row["correction_l1"] = c.item()
+        loss = loss + a.correction_l1 * c
     if both:
         if (i, nbr[i]) not in warps:
             warps[(i, nbr[i])] = MV.warp(s, train[nbr[i]])
@@ -382,6 +399,8 @@ def main():
     nbr = MV.neighbours(train) if a.multiview > 0 else [None] * len(train)
     warps = {}
     terms = {"vgg": a.vgg, "multiview": a.multiview, "adv": a.adv, "processes": dd.world}
+    if a.correction_l1:
+        terms["correction_l1"] = a.correction_l1   # absent before the term existed
     step = 0
     if a.resume:
         if not os.path.exists(ckpt):

@@ -44,8 +44,8 @@ struct SceneArgs {
     /// Proxy error as a fraction of the default MVS-like degradation (0: the true surfaces).
     #[arg(long, default_value_t = 1.0)]
     proxy_error: f32,
-    /// Surfaces: classic (pale plaster walls) or varied (coloured walls, a mirror, a lacquered
-    /// cabinet).
+    /// Surfaces: classic (pale plaster walls), varied (coloured walls, a mirror, a lacquered
+    /// cabinet) or sparse (the varied room untextured, with few objects).
     #[arg(long, value_enum, default_value = "classic")]
     finishes: relit_scenegen::room::Finishes,
 }

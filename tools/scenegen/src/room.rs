@@ -83,7 +83,15 @@ pub enum Finishes {
     /// rooms lack: each wall its own colour (half of them saturated and untextured), a
     /// near-mirror on the north wall and a lacquered cabinet of a strong colour.
     Varied,
+    /// The varied room of the same seed, stripped to what the rooms written by hand have: every
+    /// surface untextured, and only the shell, the table and chair, the mirror and the cabinet
+    /// (no posters, shelves, bed, sofa, television or clutter). Large flat evenly lit surfaces,
+    /// where the ratio image is already close to the truth.
+    Sparse,
 }
+
+/// Objects a sparse room keeps besides the shell (name prefixes).
+const SPARSE_KEEPS: [&str; 4] = ["table_", "chair_", "mirror", "cabinet"];
 
 /// How the added lights are tinted.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -254,6 +262,25 @@ fn vary(b: &mut Builder, size: Vec3, door_x: f32) {
         let m = b.material("cabinet", "plastic", c, None, rough, Vec3::ZERO);
         let prim = boxp(Vec3::new(p.x, 0.0, p.y), Vec3::new(p.x + w, h, p.y + d));
         b.add("cabinet", prim, &m, Surface::Glossy);
+    }
+}
+
+/// [`Finishes::Sparse`]: drops the furniture a sparse room lacks, then every texture (each
+/// material keeps its texture's mean as a flat albedo) and the materials nothing uses. What
+/// was textured is textureless now, so the proxy degrades it as MVS degrades a blank surface.
+fn sparsify(objects: &mut Vec<Object>, materials: &mut BTreeMap<String, Material>) {
+    objects.retain(|o| o.shell || SPARSE_KEEPS.iter().any(|k| o.name.starts_with(k)));
+    for o in objects
+        .iter_mut()
+        .filter(|o| o.surface == Surface::Textured)
+    {
+        o.surface = Surface::Textureless;
+    }
+    materials.retain(|name, _| objects.iter().any(|o| o.material == *name));
+    for m in materials.values_mut() {
+        m.texture = None;
+        m.doc.albedo_texture = None;
+        m.doc.texture_scale = 1.0;
     }
 }
 
@@ -743,12 +770,15 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         };
         b.add(&name, prim, &m, Surface::Textured);
     }
-    if o.finishes == Finishes::Varied {
+    if o.finishes != Finishes::Classic {
         // A stream of its own, so that the rest of the room is the classic one of this seed.
         let mut own = Rng::new(seed ^ 0xF141_54E5);
         std::mem::swap(b.rng, &mut own);
         vary(&mut b, size, door_x);
         std::mem::swap(b.rng, &mut own);
+    }
+    if o.finishes == Finishes::Sparse {
+        sparsify(&mut b.objects, &mut b.materials);
     }
 
     let Builder {
