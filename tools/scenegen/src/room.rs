@@ -84,14 +84,17 @@ pub enum Finishes {
     /// near-mirror on the north wall and a lacquered cabinet of a strong colour.
     Varied,
     /// The varied room of the same seed, stripped to what the rooms written by hand have: every
-    /// surface untextured, and only the shell, the table and chair, the mirror and the cabinet
-    /// (no posters, shelves, bed, sofa, television or clutter). Large flat evenly lit surfaces,
-    /// where the ratio image is already close to the truth.
+    /// surface untextured and matte except the mirror and the cabinet (every other room's floor
+    /// and table top are glossy), and only the shell, the table and chair, the mirror and the
+    /// cabinet (no posters, shelves, bed, sofa, television or clutter). Large flat evenly lit
+    /// diffuse surfaces, where the ratio image is already close to the truth.
     Sparse,
 }
 
 /// Objects a sparse room keeps besides the shell (name prefixes).
 const SPARSE_KEEPS: [&str; 4] = ["table_", "chair_", "mirror", "cabinet"];
+/// Materials a sparse room keeps glossy (as tests/scenes/hand_room2 has them).
+const GLOSSY_KEPT: [&str; 2] = ["mirror", "cabinet"];
 
 /// How the added lights are tinted.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -266,8 +269,10 @@ fn vary(b: &mut Builder, size: Vec3, door_x: f32) {
 }
 
 /// [`Finishes::Sparse`]: drops the furniture a sparse room lacks, then every texture (each
-/// material keeps its texture's mean as a flat albedo) and the materials nothing uses. What
-/// was textured is textureless now, so the proxy degrades it as MVS degrades a blank surface.
+/// material keeps its texture's mean as a flat albedo), the gloss of all but the mirror and
+/// the cabinet (a metal keeps its colour as a diffuse albedo) and the materials nothing uses.
+/// What was textured is textureless now, so the proxy degrades it as MVS degrades a blank
+/// surface.
 fn sparsify(objects: &mut Vec<Object>, materials: &mut BTreeMap<String, Material>) {
     objects.retain(|o| o.shell || SPARSE_KEEPS.iter().any(|k| o.name.starts_with(k)));
     for o in objects
@@ -277,10 +282,18 @@ fn sparsify(objects: &mut Vec<Object>, materials: &mut BTreeMap<String, Material
         o.surface = Surface::Textureless;
     }
     materials.retain(|name, _| objects.iter().any(|o| o.material == *name));
-    for m in materials.values_mut() {
+    for (name, m) in materials.iter_mut() {
         m.texture = None;
         m.doc.albedo_texture = None;
         m.doc.texture_scale = 1.0;
+        if !GLOSSY_KEPT.contains(&name.as_str()) {
+            if m.doc.kind == "conductor" {
+                m.doc.albedo = m.doc.specular;
+            }
+            m.doc.kind = "diffuse".into();
+            m.doc.roughness = 0.0;
+            m.doc.specular = [0.0; 3];
+        }
     }
 }
 
