@@ -14,11 +14,10 @@ Sets (fixed here, so that every report speaks of the same rooms):
   800002 has scenegen's varied finishes (coloured walls, a near-mirror, a lacquered cabinet),
   so that a choice meets what hand_room2 tests (added 2026-12-03: on hand_room2 the s7-clean
   network was 2–3 dB below ratio while it beat ratio on both classic validation rooms);
-  800003 has scenegen's sparse finishes (untextured, few objects: the hand rooms' kind, added
-  2026-12-03 when 800002 turned out not to reproduce hand_room2's failure); 800004 too, with
-  the true surfaces as its proxy (proxy error 0) as the hand rooms have, where the ratio image
-  is close to the truth (added the same day: the s7-clean network beat ratio on 800003, whose
-  MVS-like proxy leaves the ratio image ~10 dB further from the truth than hand_room2's).
+  800003 and 800004 have scenegen's sparse finishes (untextured, few objects, matte floors:
+  the hand rooms' kind; added 2026-12-03 when 800002 turned out not to reproduce hand_room2's
+  failure), 800004 with the true surfaces as its proxy as the hand rooms have. On 800004 the
+  s7-clean network is 1.6–2.0 dB below ratio, as on hand_room2.
 - tiny: one small room (the evaluation's own test).
 
 Per room OUT/<room>/ holds a scene (scene.json, meshes, images/ denoised as a camera's photos
