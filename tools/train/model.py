@@ -62,6 +62,11 @@ def soft_threshold(c, tau):
     return torch.sign(c) * (c.abs() - tau).clamp(min=0)
 
 
+def covered(x):
+    """N×1×H×W: the pixels an input view covers (I_1 not black); the rest are holes."""
+    return (x[:, I1] != 0).any(1, keepdim=True)
+
+
 def ratio_base(x):
     """tm of eq. 5's ratio image, I_1 / E_src · (E_add + E_src − E_rem), from the input tensor
     (N×66×H×W); zero where no view covers the pixel (I_1 = 0)."""
@@ -128,9 +133,9 @@ class RelightNet(nn.Module):
             cd, cv = y[:, :3], y[:, 3:]
             tau = self.config["shrink"]
             if tau > 0:
-                covered = (x[:, I1] != 0).any(1, keepdim=True)
-                cd = torch.where(covered, soft_threshold(cd, tau), cd)
-                cv = torch.where(covered, soft_threshold(cv, tau), cv)
+                seen = covered(x)
+                cd = torch.where(seen, soft_threshold(cd, tau), cd)
+                cv = torch.where(seen, soft_threshold(cv, tau), cv)
             y = torch.cat([cd + ratio_base(x), cv], 1)
         return y
 

@@ -90,7 +90,7 @@ def correction_l1(out, x):
     """Mean |correction| on covered pixels of a base-"ratio" network: what it adds to the ratio
     image (diffuse) and its view-dependent output. As a penalty it keeps a correction only where
     the data terms pay for it, so that surfaces the ratio image already renders stay as they are."""
-    covered = (x[:, M.I1] != 0).any(1, keepdim=True)
+    covered = M.covered(x)
     c = torch.cat([out[:, :3] - M.ratio_base(x), out[:, 3:6]], 1)
     return (c.abs() * covered).sum() / (covered.sum() * c.shape[1]).clamp(min=1)
 
@@ -98,7 +98,7 @@ def correction_l1(out, x):
 def covered_psnr(img, t, x):
     """log-PSNR of a tonemapped image on the pixels an input view covers (I_1 not black), as
     evaluate.py scores them; None when no pixel is covered."""
-    covered = (x[:, M.I1] != 0).any(1, keepdim=True).expand_as(t)
+    covered = M.covered(x).expand_as(t)
     if not covered.any():
         return None
     mse = ((img.clamp(min=0) - t) ** 2)[covered].mean().item()
@@ -348,8 +348,6 @@ def step_loss(a, net, disc, vgg, train, nbr, warps, i, lighting, rng, row):
         out = net(x)
     loss = losses(out, d, t, vgg=vgg, lambda_vgg=a.vgg)
     if a.correction_l1 > 0:
-        if a.base != "ratio":
-            sys.exit("--correction-l1 needs --base ratio (a correction is relative to it)")
         c = correction_l1(out, x)
         row["correction_l1"] = c.item()
         loss = loss + a.correction_l1 * c
@@ -371,6 +369,8 @@ def main():
     a = parse_args()
     if a.resume and a.init_from:
         sys.exit("--resume continues this run, --init-from starts one: pass one of them")
+    if a.correction_l1 and a.base != "ratio":
+        sys.exit("--correction-l1 needs --base ratio (a correction is relative to the ratio image)")
     if a.threads:
         torch.set_num_threads(a.threads)
     torch.use_deterministic_algorithms(True)
