@@ -604,3 +604,58 @@ fn sparse_finishes_keep_the_varied_shell_and_few_objects_all_untextured() {
         }
     }
 }
+
+/// `Finishes::Matte` is the varied room of the seed with every object, light and texture kept
+/// and only the gloss gone: every material but the mirror's and the cabinet's diffuse (a
+/// metal's colour as its albedo), and no surface the proxy treats as glossy but those two.
+#[test]
+fn matte_finishes_keep_the_varied_room_and_take_only_the_gloss() {
+    let mut glossy_floors = 0;
+    for seed in 1..=8 {
+        let opts = |finishes| RoomOptions {
+            finishes,
+            ..small()
+        };
+        let varied = room::generate(seed, &opts(room::Finishes::Varied));
+        let matte = room::generate(seed, &opts(room::Finishes::Matte));
+        assert_eq!(
+            format!("{:?}", varied.lights),
+            format!("{:?}", matte.lights)
+        );
+        assert_eq!(varied.objects.len(), matte.objects.len(), "seed {seed}");
+        for (o, v) in matte.objects.iter().zip(&varied.objects) {
+            assert_eq!(o.name, v.name);
+            assert_eq!(format!("{:?}", o.prim), format!("{:?}", v.prim));
+            assert_eq!(o.material, v.material, "{}", o.name);
+            let kept = o.material == "mirror" || o.material == "cabinet";
+            assert_eq!(
+                o.surface == Surface::Glossy,
+                kept && v.surface == Surface::Glossy
+            );
+        }
+        let floor = &varied.objects.iter().find(|o| o.name == "floor").unwrap();
+        glossy_floors += (varied.materials[&floor.material].doc.kind != "diffuse") as usize;
+        for (name, m) in &matte.materials {
+            let v = &varied.materials[name];
+            assert_eq!(
+                m.doc.albedo_texture, v.doc.albedo_texture,
+                "{name}: texture kept"
+            );
+            if name == "mirror" || name == "cabinet" {
+                assert_eq!(format!("{:?}", m.doc), format!("{:?}", v.doc), "{name}");
+                continue;
+            }
+            assert_eq!(m.doc.kind, "diffuse", "{name}: matte");
+            let a = if v.doc.kind == "conductor" {
+                v.doc.specular
+            } else {
+                v.doc.albedo
+            };
+            assert_eq!(m.doc.albedo, a, "{name}");
+        }
+    }
+    assert_eq!(
+        glossy_floors, 8,
+        "every varied floor is glossy, so this test tests something"
+    );
+}

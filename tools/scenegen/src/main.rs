@@ -45,7 +45,8 @@ struct SceneArgs {
     #[arg(long, default_value_t = 1.0)]
     proxy_error: f32,
     /// Surfaces: classic (pale plaster walls), varied (coloured walls, a mirror, a lacquered
-    /// cabinet) or sparse (the varied room untextured, with few objects).
+    /// cabinet), sparse (the varied room untextured, with few objects, matte but the mirror
+    /// and cabinet) or matte (the varied room, matte but the mirror and cabinet).
     #[arg(long, value_enum, default_value = "classic")]
     finishes: relit_scenegen::room::Finishes,
 }

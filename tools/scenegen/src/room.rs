@@ -84,11 +84,15 @@ pub enum Finishes {
     /// near-mirror on the north wall and a lacquered cabinet of a strong colour.
     Varied,
     /// The varied room of the same seed, stripped to what the rooms written by hand have: every
-    /// surface untextured and matte except the mirror and the cabinet (every other room's floor
+    /// surface untextured and matte except the mirror and the cabinet (classic and varied rooms' floor
     /// and table top are glossy), and only the shell, the table and chair, the mirror and the
     /// cabinet (no posters, shelves, bed, sofa, television or clutter). Large flat evenly lit
     /// diffuse surfaces, where the ratio image is already close to the truth.
     Sparse,
+    /// The varied room of the same seed, every object and texture kept, everything matte but
+    /// the mirror and the cabinet: textured, cluttered rooms whose floor and tables do not
+    /// reflect (between varied, where they all do, and sparse).
+    Matte,
 }
 
 /// Objects a sparse room keeps besides the shell (name prefixes).
@@ -269,10 +273,9 @@ fn vary(b: &mut Builder, size: Vec3, door_x: f32) {
 }
 
 /// [`Finishes::Sparse`]: drops the furniture a sparse room lacks, then every texture (each
-/// material keeps its texture's mean as a flat albedo), the gloss of all but the mirror and
-/// the cabinet (a metal keeps its colour as a diffuse albedo) and the materials nothing uses.
-/// What was textured is textureless now, so the proxy degrades it as MVS degrades a blank
-/// surface.
+/// material keeps its texture's mean as a flat albedo), the materials nothing uses and the
+/// gloss of all but the mirror and the cabinet ([`matten`]). What was textured is textureless
+/// now, so the proxy degrades it as MVS degrades a blank surface.
 fn sparsify(objects: &mut Vec<Object>, materials: &mut BTreeMap<String, Material>) {
     objects.retain(|o| o.shell || SPARSE_KEEPS.iter().any(|k| o.name.starts_with(k)));
     for o in objects
@@ -282,10 +285,18 @@ fn sparsify(objects: &mut Vec<Object>, materials: &mut BTreeMap<String, Material
         o.surface = Surface::Textureless;
     }
     materials.retain(|name, _| objects.iter().any(|o| o.material == *name));
-    for (name, m) in materials.iter_mut() {
+    for m in materials.values_mut() {
         m.texture = None;
         m.doc.albedo_texture = None;
         m.doc.texture_scale = 1.0;
+    }
+    matten(materials);
+}
+
+/// Every material but the mirror and the cabinet made diffuse (a metal keeps its colour as a
+/// diffuse albedo; textures stay).
+fn matten(materials: &mut BTreeMap<String, Material>) {
+    for (name, m) in materials.iter_mut() {
         if !GLOSSY_KEPT.contains(&name.as_str()) {
             if m.doc.kind == "conductor" {
                 m.doc.albedo = m.doc.specular;
@@ -790,8 +801,24 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         vary(&mut b, size, door_x);
         std::mem::swap(b.rng, &mut own);
     }
-    if o.finishes == Finishes::Sparse {
-        sparsify(&mut b.objects, &mut b.materials);
+    match o.finishes {
+        Finishes::Sparse => sparsify(&mut b.objects, &mut b.materials),
+        Finishes::Matte => {
+            matten(&mut b.materials);
+            // MVS sees a matte surface as it sees any other: by its texture.
+            for o in b
+                .objects
+                .iter_mut()
+                .filter(|o| o.surface == Surface::Glossy)
+            {
+                match b.materials[&o.material].texture {
+                    _ if GLOSSY_KEPT.contains(&o.material.as_str()) => {}
+                    Some(_) => o.surface = Surface::Textured,
+                    None => o.surface = Surface::Textureless,
+                }
+            }
+        }
+        Finishes::Classic | Finishes::Varied => {}
     }
 
     let Builder {
