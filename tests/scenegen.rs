@@ -537,22 +537,30 @@ fn varied_finishes_add_coloured_walls_a_mirror_and_a_cabinet_and_change_nothing_
     );
 }
 
+/// The varied room of `seed` and the room of other `finishes` made from it, whose lights are
+/// the varied room's.
+fn beside_varied(seed: u64, finishes: room::Finishes) -> (room::Room, room::Room) {
+    let opts = |finishes| RoomOptions {
+        finishes,
+        ..small()
+    };
+    let varied = room::generate(seed, &opts(room::Finishes::Varied));
+    let other = room::generate(seed, &opts(finishes));
+    assert_eq!(
+        format!("{:?}", varied.lights),
+        format!("{:?}", other.lights),
+        "seed {seed}: {finishes:?} keeps the lights"
+    );
+    (varied, other)
+}
+
 /// `Finishes::Sparse` is the varied room of the seed with only the shell, table, chair, mirror
 /// and cabinet left, nothing textured, everything but the mirror and cabinet matte, the same
 /// lights, and no material nothing uses.
 #[test]
 fn sparse_finishes_keep_the_varied_shell_and_few_objects_all_untextured() {
     for seed in 1..=8 {
-        let opts = |finishes| RoomOptions {
-            finishes,
-            ..small()
-        };
-        let varied = room::generate(seed, &opts(room::Finishes::Varied));
-        let sparse = room::generate(seed, &opts(room::Finishes::Sparse));
-        assert_eq!(
-            format!("{:?}", varied.lights),
-            format!("{:?}", sparse.lights)
-        );
+        let (varied, sparse) = beside_varied(seed, room::Finishes::Sparse);
         assert!(sparse.objects.len() < varied.objects.len(), "seed {seed}");
         for o in &sparse.objects {
             let v = varied.objects.iter().find(|v| v.name == o.name).unwrap();
@@ -612,16 +620,7 @@ fn sparse_finishes_keep_the_varied_shell_and_few_objects_all_untextured() {
 fn matte_finishes_keep_the_varied_room_and_take_only_the_gloss() {
     let mut glossy_floors = 0;
     for seed in 1..=8 {
-        let opts = |finishes| RoomOptions {
-            finishes,
-            ..small()
-        };
-        let varied = room::generate(seed, &opts(room::Finishes::Varied));
-        let matte = room::generate(seed, &opts(room::Finishes::Matte));
-        assert_eq!(
-            format!("{:?}", varied.lights),
-            format!("{:?}", matte.lights)
-        );
+        let (varied, matte) = beside_varied(seed, room::Finishes::Matte);
         assert_eq!(varied.objects.len(), matte.objects.len(), "seed {seed}");
         for (o, v) in matte.objects.iter().zip(&varied.objects) {
             assert_eq!(o.name, v.name);
