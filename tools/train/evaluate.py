@@ -20,7 +20,10 @@ with **covered** pixels (some input view sees them: the ULR composite is not bla
 - chroma: mean distance between the rg-chromaticities (r, g)/(r + g + b) of the linear image
   and the truth, over covered non-glossy pixels the truth lights (luminance > 1e-3);
 - sharpness: gradient energy (squared forward differences of the tonemapped image between
-  covered neighbours) relative to the truth's.
+  covered neighbours) relative to the truth's;
+- bias: mean signed error (image − truth) of the tonemapped image on covered pixels: how much
+  brighter (> 0) or darker the image is overall, apart from its noise (a network that
+  brightens every relit image as glossy rooms taught it shows here).
 Writes OUT/metrics.json (per image, per room × lighting × mode, means over rooms), OUT/table.md
 (the per-room table), OUT/compact.md (a row per room and lighting, the modes side by side) and OUT/<room>.png (rows: view × lighting; columns: truth, each network,
 ratio, ULR, the holes in red), and prints the table and the floor: each network mode ≥ ratio
@@ -119,6 +122,7 @@ def image_metrics(lp, img, truth, lin, lin_truth, covered, glossy):
         "glossy_psnr": psnr(img, truth, glossy & covered),
         "chroma": chroma_error(lin, lin_truth, covered & ~glossy),
         "sharpness": grad_energy(img, covered) / g_truth if g_truth > 0 else None,
+        "bias": float((img - truth)[covered].mean()) if covered.any() else None,
     }
 
 
@@ -217,7 +221,7 @@ def save_png(path, img):
 
 
 KEYS = ["psnr", "psnr_holes", "holes", "dssim", "dssim_holes", "lpips", "lpips_holes",
-        "glossy_psnr", "chroma", "sharpness"]
+        "glossy_psnr", "chroma", "sharpness", "bias"]
 
 
 def mean(xs):
@@ -258,7 +262,7 @@ def fmt(x, p=2):
 
 def table(per, overall, modes, rooms):
     lines = ["| room | lighting | mode | PSNR covered | PSNR holes (holes %) | DSSIM | LPIPS | "
-             "glossy PSNR | chroma | sharpness |", "|" + " --- |" * 10]
+             "glossy PSNR | chroma | sharpness | bias |", "|" + " --- |" * 11]
     for room in rooms + ["mean"]:
         for lt in H.LIGHTINGS:
             for m in modes:
@@ -268,7 +272,8 @@ def table(per, overall, modes, rooms):
                 lines.append(
                     f"| {room} | {lt[5:]} | {m} | {fmt(v['psnr'])} | {fmt(v['psnr_holes'])} "
                     f"({fmt(100 * v['holes'], 2)}) | {fmt(v['dssim'], 4)} | {fmt(v['lpips'], 3)} | "
-                    f"{fmt(v['glossy_psnr'])} | {fmt(v['chroma'], 4)} | {fmt(v['sharpness'])} |")
+                    f"{fmt(v['glossy_psnr'])} | {fmt(v['chroma'], 4)} | {fmt(v['sharpness'])} | "
+                    f"{fmt(v['bias'], 4)} |")
     return "\n".join(lines)
 
 

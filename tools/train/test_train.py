@@ -330,7 +330,7 @@ class EvaluationTest(unittest.TestCase):
             self.assertAlmostEqual(z["psnr"], ratio["psnr"], delta=0.05, msg=lt)
             # Ratio-filled is ratio on covered pixels, whatever the network.
             self.assertAlmostEqual(per[(lt, "fill:direct")]["psnr"], ratio["psnr"], delta=1e-6)
-            for k in ("dssim", "lpips", "chroma", "sharpness"):
+            for k in ("dssim", "lpips", "chroma", "sharpness", "bias"):
                 self.assertIsNotNone(ratio[k], (lt, k))
             self.assertTrue(0 < ratio["psnr"] < 60 and 0 <= ratio["holes"] < 1, lt)
         # Under the original lighting the ratio rule changes nothing: it is the ULR composite.
@@ -338,6 +338,27 @@ class EvaluationTest(unittest.TestCase):
                                per[("eval_original", "ulr")]["psnr"], delta=0.01)
         self.assertTrue(os.path.getsize(os.path.join(out, "sg700100.png")) > 0)
         self.assertIn("| sg700100 | alone | net:zero |", read(os.path.join(out, "table.md")))
+
+
+class MetricsTest(unittest.TestCase):
+    """evaluate.py's per-image metrics on images made to differ in a known way."""
+
+    def test_bias_is_the_mean_signed_error_on_covered_pixels_only(self):
+        import numpy as np
+        sys.path.insert(0, HERE)
+        import evaluate as E
+        rng = np.random.default_rng(3)
+        truth = rng.uniform(0.2, 0.8, (12, 16, 3)).astype(np.float32)
+        covered = np.ones((12, 16), bool)
+        covered[:, :4] = False
+        img = truth + np.float32(0.01)
+        img[~covered] = 0.0                   # a hole's error must not count
+        m = E.image_metrics(lambda a, b: [0.0], img, truth, img, truth, covered,
+                            np.zeros_like(covered))
+        self.assertAlmostEqual(m["bias"], 0.01, places=6)
+        m = E.image_metrics(lambda a, b: [0.0], truth - 0.02, truth, truth, truth, covered,
+                            np.zeros_like(covered))
+        self.assertAlmostEqual(m["bias"], -0.02, places=6)
 
 
 class PerceptualTest(unittest.TestCase):
