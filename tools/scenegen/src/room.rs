@@ -290,12 +290,22 @@ fn sparsify(objects: &mut Vec<Object>, materials: &mut BTreeMap<String, Material
         m.doc.albedo_texture = None;
         m.doc.texture_scale = 1.0;
     }
-    matten(materials);
+    matten(objects, materials);
 }
 
 /// Every material but the mirror and the cabinet made diffuse (a metal keeps its colour as a
-/// diffuse albedo; textures stay).
-fn matten(materials: &mut BTreeMap<String, Material>) {
+/// diffuse albedo; textures stay), and the objects that were glossy to the proxy marked as what
+/// they are now: MVS matches a matte surface by its texture, as any other.
+fn matten(objects: &mut [Object], materials: &mut BTreeMap<String, Material>) {
+    for o in objects
+        .iter_mut()
+        .filter(|o| o.surface == Surface::Glossy && !GLOSSY_KEPT.contains(&o.material.as_str()))
+    {
+        o.surface = match materials[&o.material].texture {
+            Some(_) => Surface::Textured,
+            None => Surface::Textureless,
+        };
+    }
     for (name, m) in materials.iter_mut() {
         if !GLOSSY_KEPT.contains(&name.as_str()) {
             if m.doc.kind == "conductor" {
@@ -803,21 +813,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
     }
     match o.finishes {
         Finishes::Sparse => sparsify(&mut b.objects, &mut b.materials),
-        Finishes::Matte => {
-            matten(&mut b.materials);
-            // MVS sees a matte surface as it sees any other: by its texture.
-            for o in b
-                .objects
-                .iter_mut()
-                .filter(|o| o.surface == Surface::Glossy)
-            {
-                match b.materials[&o.material].texture {
-                    _ if GLOSSY_KEPT.contains(&o.material.as_str()) => {}
-                    Some(_) => o.surface = Surface::Textured,
-                    None => o.surface = Surface::Textureless,
-                }
-            }
-        }
+        Finishes::Matte => matten(&mut b.objects, &mut b.materials),
         Finishes::Classic | Finishes::Varied => {}
     }
 
