@@ -404,6 +404,21 @@ fn the_pass_graph_derives_its_barriers() {
             g.set("Src", gpu::Bind::Buffer(&b))
                 .set("Dst", gpu::Bind::Buffer(&c));
             g.dispatch("b to c", &p, push, (8, 8, 1))?;
+            // A pass's own binding that its shader does not declare, and a declared one the
+            // graph lacks, are errors naming the shader; neither records anything.
+            let misspelt = [("Dest", gpu::Bind::Buffer(&c))];
+            let e = g.pass("typo", &p, misspelt, push, (8, 8, 1)).unwrap_err();
+            assert!(
+                e.to_string().contains("\"Dest\"") && e.to_string().contains("compose"),
+                "{e}"
+            );
+            let mut bare = gpu::Graph::new(&gpu, cmd, None);
+            bare.set("Src", gpu::Bind::Buffer(&a));
+            let e = bare.dispatch("bare", &p, push, (8, 8, 1)).unwrap_err();
+            assert!(
+                e.to_string().contains("compose") && e.to_string().contains("\"Dst\""),
+                "{e}"
+            );
             Ok(g.barriers)
         })
         .unwrap()

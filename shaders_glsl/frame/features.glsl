@@ -28,8 +28,7 @@ layout(push_constant) uniform Push { vec4 eye; uint width; uint height; } pc;
 const uint GROUPS = 17u;  // 66 channels padded to 68
 const float PI = 3.14159265358979;
 
-#include "constants.glsl"
-vec3 tm(vec3 x) { return log(1.0 + MU * max(x, vec3(0.0))) / log(1.0 + MU); }
+#include "tonemap.glsl"
 
 void main() {
     uint p = gl_GlobalInvocationID.x;

@@ -38,9 +38,7 @@ const uint MODE_NETWORK = 0u;
 const uint MODE_ULR = 1u;
 const uint MODE_RATIO_FILLED = 3u;  // ratio where I_1 is not black, the network in the holes
 
-#include "constants.glsl"
-vec3 tm(vec3 v) { return log(1.0 + MU * max(v, vec3(0.0))) / log(1.0 + MU); }
-vec3 untm(vec3 y) { return (pow(vec3(1.0 + MU), max(y, vec3(0.0))) - 1.0) / MU; }
+#include "tonemap.glsl"
 
 // tm(I_1 / E_src · (E_add + E_src − E_rem)) from the input tensor: channels 0–2, 51–59
 // (pack4 groups 0, 12, 13, 14); E_src/π floored at E_FLOOR / π as ratio mode floors E at E_FLOOR.

@@ -3,8 +3,8 @@
 // the novel view at the first surface; its hit y takes its value from the input view whose
 // viewing direction onto y is best aligned with the reflected ray (among all views that see y):
 //   I_i / E_src_i · (E_add_i + E_src_i − E_rem_i),  E_rem_i = α_dim · E_src_i,
-// read at y's pixel in view i (nearest texel, as the depth test). E_src is floored at 1e-4
-// (W/m²) in the ratio. A lit added light met before y is seen in the mirror: its radiance.
+// read at y's pixel in view i (nearest texel, as the depth test). E_src is floored at E_FLOOR
+// (W/m², constants.table) in the ratio. A lit added light met before y is seen in the mirror: its radiance.
 // A live light (frame/live.glsl) adds its E_add evaluated at y itself.
 // Output vec4: rgb, w = reflected distance |y − x| (0: no hit, no view).
 #extension GL_EXT_ray_query : require
@@ -70,5 +70,5 @@ void main() {
         if (s != 0.0) ea += s * live_eadd(i, y, live_normal(tri, -r), tri, p);
     }
     vec3 modified = ea + es - pc.alpha_dim * es;
-    mirror[p] = vec4(col / max(es, vec3(1e-4)) * modified, distance(y, x));
+    mirror[p] = vec4(col / max(es, vec3(E_FLOOR)) * modified, distance(y, x));
 }

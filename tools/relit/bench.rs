@@ -716,7 +716,9 @@ fn moving_frames(
         fluid.rendered(next, secs);
         times.push((divisor, secs * 1e3));
     }
-    let last = fluid.divisor;
+    // The divisor of the last frame rendered (the policy may change it after that frame, when
+    // no frame at the new one exists yet).
+    let last = times.last().map_or(fluid.divisor, |t| t.0);
     let at_last: Vec<f64> = times
         .iter()
         .filter(|(d, _)| *d == last)

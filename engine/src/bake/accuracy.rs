@@ -139,7 +139,7 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, p: &super::BakeParams) -> Result<
             let r = lum(rho.pixels[p]);
             if zp <= 0.0
                 || zt <= 0.0
-                || (zp - zt).abs() > 0.02 * zt
+                || (zp - zt).abs() > crate::constants::DEPTH_EPS * zt
                 || r <= 0.05
                 || lum(od.pixels[p]) >= 5.0
             {

@@ -188,6 +188,20 @@ impl BakeCache {
         super::storage::write_vec4s(&self.albedo(), b"RALB", a)
     }
 
+    /// A surface cache (the source's, [`Self::source_cache`], or a light's,
+    /// [`Self::surface_cache`]): one vec4 per texel, tagged "RCAC".
+    pub fn read_texels(path: &Path, texels: usize) -> Result<Vec<[f32; 4]>> {
+        super::storage::read_vec4s(path, b"RCAC", texels, "surface-cache", "texels")
+    }
+
+    /// Writes a surface cache atomically, making its light's directory first.
+    pub fn write_texels(path: &Path, values: &[[f32; 4]]) -> Result<()> {
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        }
+        super::storage::write_vec4s(path, b"RCAC", values)
+    }
+
     /// Writes a w×h map (rgb of each vec4) as EXR, atomically.
     pub fn write_map(path: &Path, w: u32, h: u32, px: &[[f32; 4]]) -> Result<()> {
         let pixels = px.iter().map(|p| [p[0], p[1], p[2]]).collect();

@@ -437,7 +437,7 @@ impl Stages<'_> {
         let layout = CacheLayout::new(&s.geom);
         let file = self.cache.source_cache();
         let values = if file.exists() {
-            super::surface_cache::read(&file, layout.texels())?
+            BakeCache::read_texels(&file, layout.texels())?
         } else {
             let t0 = Instant::now();
             let rounds = filter_rounds(p);
@@ -453,7 +453,7 @@ impl Stages<'_> {
                 (n, p.seed, rounds),
                 &mut |d, total| progress.update("source cache", d as usize, total as usize, 0),
             )?;
-            super::surface_cache::write(&file, &v)?;
+            BakeCache::write_texels(&file, &v)?;
             self.stage(
                 "source cache",
                 t0,
@@ -599,14 +599,12 @@ pub fn light_caches(
                 p,
                 &mut |d, n| progress.update(&stage, d as usize, n as usize, 0),
             )?;
-            let dir = cache.light_dir(l, p);
-            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-            super::surface_cache::write(&cache.surface_cache(l, p), &v)?;
+            BakeCache::write_texels(&cache.surface_cache(l, p), &v)?;
         }
     }
     lights
         .iter()
-        .map(|l| super::surface_cache::read(&cache.surface_cache(l, p), layout.texels()))
+        .map(|l| BakeCache::read_texels(&cache.surface_cache(l, p), layout.texels()))
         .collect()
 }
 
@@ -642,11 +640,9 @@ fn added_stage(
             continue;
         }
         let gl = GpuLight::new(l);
-        let dir = cache.light_dir(l, p);
-        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
         let cf = cache.surface_cache(l, p);
         let values = if cf.exists() {
-            super::surface_cache::read(&cf, layout.texels())?
+            BakeCache::read_texels(&cf, layout.texels())?
         } else {
             let t = Instant::now();
             let stage = format!("surface cache {}/{}", li + 1, lights.len());
@@ -660,7 +656,7 @@ fn added_stage(
                 p,
                 &mut |d, n| progress.update(&stage, d as usize, n as usize, 0),
             )?;
-            super::surface_cache::write(&cf, &v)?;
+            BakeCache::write_texels(&cf, &v)?;
             cache_s += t.elapsed().as_secs_f64();
             cache_rays += super::surface_cache::max_rays(layout.texels(), ap);
             caches += 1;

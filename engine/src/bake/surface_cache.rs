@@ -5,7 +5,6 @@
 //! the view, so this replaces tracing the same surface once per pixel of every view that sees it.
 
 use crate::gpu::shaders;
-use std::path::Path;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -351,13 +350,4 @@ pub fn reference(
             (sum / p.cache_samples as f32).extend(1.0).into()
         })
         .collect()
-}
-
-/// A cache on disk: vec4 per texel, tagged "RCAC".
-pub fn write(path: &Path, values: &[[f32; 4]]) -> Result<()> {
-    super::storage::write_vec4s(path, b"RCAC", values)
-}
-
-pub fn read(path: &Path, texels: usize) -> Result<Vec<[f32; 4]>> {
-    super::storage::read_vec4s(path, b"RCAC", texels, "surface-cache", "texels")
 }

@@ -500,12 +500,20 @@ pub struct Renderer {
     pub display_only: bool,
 }
 
+/// The push constants of one frame's passes.
+struct Pushes {
+    reproject: reproject::Push,
+    irradiance: irradiance::Push,
+    target_mirror: target_mirror::Push,
+    features: features::Push,
+    output: output::Push,
+}
+
 /// The novel view's G-buffer, as the frame's passes name it.
 const GBUFFER: [&str; 3] = ["g_pos", "g_nrm", "g_tri"];
 
-/// Near and far planes of the novel view's G-buffer (m).
-pub const NEAR: f32 = 0.02;
-pub const FAR: f32 = 1000.0;
+/// Near and far planes of the novel view's G-buffer (m): the input views'.
+pub use crate::bake::views::{FAR, NEAR};
 
 impl Renderer {
     pub fn new(
@@ -675,6 +683,63 @@ impl Renderer {
         exposure: f32,
         mut timer: Option<&mut Timer>,
     ) -> Result<()> {
+        self.check_frame(lighting, mode)?;
+        self.buffers(cam.width, cam.height)?;
+        let culled = self.cull_views(cam, timer.as_deref_mut())?;
+        let b = &self.bufs[0];
+        b.active.upload(bytemuck::cast_slice(&self.active))?;
+        let mut ints = lighting.intensities.clone();
+        ints.resize(self.scene.lights.len().max(1), 0.0);
+        b.intensity.upload(bytemuck::cast_slice(&ints))?;
+        let push = self.pushes(cam, lighting, mode, exposure);
+        let threads = (cam.width * cam.height, 1, 1);
+        // The passes that only feed the network (see `display_only`).
+        let inputs = mode.needs_network() || !self.display_only;
+        let gpu = self.gpu.clone();
+        let res = gpu.submit(|cmd| -> Result<()> {
+            let mut g = Graph::new(&gpu, cmd, timer);
+            self.resources(&mut g, b);
+            if culled {
+                g.written_before(&GBUFFER)?;
+            } else {
+                self.record_gbuffer(&mut g, b, cam)?;
+            }
+            g.dispatch(
+                "reproject",
+                &self.reproject,
+                bytes_of(&push.reproject),
+                threads,
+            )?;
+            g.dispatch(
+                "irradiance",
+                &self.irradiance,
+                bytes_of(&push.irradiance),
+                threads,
+            )?;
+            if inputs {
+                let mirror = bytes_of(&push.target_mirror);
+                g.dispatch("target mirror", &self.target_mirror, mirror, threads)?;
+                g.dispatch(
+                    "features",
+                    &self.features,
+                    bytes_of(&push.features),
+                    threads,
+                )?;
+            }
+            if mode.needs_network() {
+                let (net, nb) = (self.net.as_ref().unwrap(), b.net.as_ref().unwrap());
+                g.external(None, &["NetIn"], &["NetOut"], |cmd, timer| {
+                    net.record(cmd, nb, &b.input, timer)
+                })?;
+            }
+            g.dispatch("output", &self.output, bytes_of(&push.output), threads)
+        })?;
+        res
+    }
+
+    /// What a frame needs before anything is recorded: weights for a network mode, one
+    /// intensity per added light, and every lit light baked (or live).
+    fn check_frame(&self, lighting: &Lighting, mode: Mode) -> Result<()> {
         if mode.needs_network() && self.net.is_none() {
             return Err(Error::Other(format!(
                 "{mode:?} mode needs weights (--weights FILE.safetensors); use --mode ratio or ulr"
@@ -695,112 +760,74 @@ impl Renderer {
                 "added light \"{name}\" is lit but not baked: bake it first (`relit bake SCENE --lights {name}`)"
             )));
         }
-        let (width, height) = (cam.width, cam.height);
-        self.buffers(width, height)?;
-        let culled = self.cull_views(cam, timer.as_deref_mut())?;
-        let b = &self.bufs[0];
-        let eye = cam.center();
-        let active = &self.active;
-        b.active.upload(bytemuck::cast_slice(active))?;
-        let mut ints = lighting.intensities.clone();
-        ints.resize(self.scene.lights.len().max(1), 0.0);
-        b.intensity.upload(bytemuck::cast_slice(&ints))?;
+        Ok(())
+    }
+
+    /// The push constants of the frame's passes for `cam` (after `cull_views` chose the views).
+    fn pushes(&self, cam: &Camera, lighting: &Lighting, mode: Mode, exposure: f32) -> Pushes {
         let s = &self.scene;
-        let e4 = [eye.x, eye.y, eye.z, 1.0];
-        let threads = (width * height, 1, 1);
-        let (vw, vh) = (s.views.width, s.views.height);
+        let c = cam.center();
+        let eye = [c.x, c.y, c.z, 1.0];
+        let (width, height) = (cam.width, cam.height);
+        let (view_w, view_h, nviews) = (s.views.width, s.views.height, s.views.count);
         let nlights = s.lights.len() as u32;
         let (nlive, live_mask) = (self.live.count(), self.live.mask());
-        let alpha_dim = lighting.alpha_dim;
-        let reproject = reproject::Push {
-            eye: e4,
-            width,
-            height,
-            nactive: active.len() as u32,
-            view_w: vw,
-            view_h: vh,
-        };
-        let irradiance = irradiance::Push {
-            eye: e4,
-            width,
-            height,
-            nactive: active.len() as u32,
-            view_w: vw,
-            view_h: vh,
-            nviews: s.views.count,
-            nlights,
-            alpha_dim,
-            nlive,
-            live_mask,
-        };
-        let target_mirror = target_mirror::Push {
-            eye: e4,
-            width,
-            height,
-            view_w: vw,
-            view_h: vh,
-            nviews: s.views.count,
-            nlights,
-            alpha_dim,
-            exclude: self.exclude.unwrap_or(u32::MAX),
-            nlive,
-            live_mask,
-        };
-        let features = features::Push {
-            eye: e4,
-            width,
-            height,
-        };
-        let output = output::Push {
-            width,
-            height,
-            mode: match mode {
-                Mode::Network => 0,
-                Mode::Ulr => 1,
-                Mode::Ratio => 2,
-                Mode::RatioFilled => 3,
+        let (alpha_dim, nactive) = (lighting.alpha_dim, self.active.len() as u32);
+        Pushes {
+            reproject: reproject::Push {
+                eye,
+                width,
+                height,
+                nactive,
+                view_w,
+                view_h,
             },
-            exposure,
-            cam: cam.to_gpu(NEAR, FAR),
-            nlights,
-            base: match self.net.as_ref().map(|n| n.config.base) {
-                Some(crate::net::NetBase::Ratio) => 1,
-                _ => 0,
+            irradiance: irradiance::Push {
+                eye,
+                width,
+                height,
+                nactive,
+                view_w,
+                view_h,
+                nviews,
+                nlights,
+                alpha_dim,
+                nlive,
+                live_mask,
             },
-            shrink: self.net.as_ref().map_or(0.0, |n| n.config.shrink),
-        };
-        // The passes that only feed the network (see `display_only`).
-        let inputs = mode.needs_network() || !self.display_only;
-        let gpu = self.gpu.clone();
-        let res = gpu.submit(|cmd| -> Result<()> {
-            let mut g = Graph::new(&gpu, cmd, timer);
-            self.resources(&mut g, b);
-            if culled {
-                g.written_before(&GBUFFER)?;
-            } else {
-                self.record_gbuffer(&mut g, b, cam)?;
-            }
-            g.dispatch("reproject", &self.reproject, bytes_of(&reproject), threads)?;
-            g.dispatch(
-                "irradiance",
-                &self.irradiance,
-                bytes_of(&irradiance),
-                threads,
-            )?;
-            if inputs {
-                let mirror = bytes_of(&target_mirror);
-                g.dispatch("target mirror", &self.target_mirror, mirror, threads)?;
-                g.dispatch("features", &self.features, bytes_of(&features), threads)?;
-            }
-            if mode.needs_network() {
-                let (net, nb) = (self.net.as_ref().unwrap(), b.net.as_ref().unwrap());
-                g.external(None, &["NetIn"], &["NetOut"], |cmd, timer| {
-                    net.record(cmd, nb, &b.input, timer)
-                })?;
-            }
-            g.dispatch("output", &self.output, bytes_of(&output), threads)
-        })?;
-        res
+            target_mirror: target_mirror::Push {
+                eye,
+                width,
+                height,
+                view_w,
+                view_h,
+                nviews,
+                nlights,
+                alpha_dim,
+                exclude: self.exclude.unwrap_or(u32::MAX),
+                nlive,
+                live_mask,
+            },
+            features: features::Push { eye, width, height },
+            output: output::Push {
+                width,
+                height,
+                mode: match mode {
+                    Mode::Network => 0,
+                    Mode::Ulr => 1,
+                    Mode::Ratio => 2,
+                    Mode::RatioFilled => 3,
+                },
+                exposure,
+                cam: cam.to_gpu(NEAR, FAR),
+                nlights,
+                base: match self.net.as_ref().map(|n| n.config.base) {
+                    Some(crate::net::NetBase::Ratio) => 1,
+                    _ => 0,
+                },
+                shrink: self.net.as_ref().map_or(0.0, |n| n.config.shrink),
+            },
+        }
     }
 
     /// Chooses the frame's active views (`self.active`). With more views than `culling.above`

@@ -79,7 +79,8 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
                 }
                 ea += v.eadd(r.intensities, y, ny, h.tri as usize, p as u32);
             }
-            let m = col / es.max(Vec3::splat(1e-4)) * (ea + es - r.alpha_dim * es);
+            let m =
+                col / es.max(Vec3::splat(crate::constants::E_FLOOR)) * (ea + es - r.alpha_dim * es);
             [m.x, m.y, m.z, y.distance(x)]
         })
         .collect()

@@ -57,7 +57,8 @@ impl<'a, 't> Graph<'a, 't> {
     }
 
     /// A compute pass over `threads` invocations that first puts its own resources `binds` in
-    /// the table (a pass's private buffers, or what it reads and writes this time).
+    /// the table (a pass's private buffers, or what it reads and writes this time); each of
+    /// them must be a binding its shader declares (a misspelt name is an error, not unbound).
     pub fn pass(
         &mut self,
         label: &str,
@@ -67,6 +68,14 @@ impl<'a, 't> Graph<'a, 't> {
         threads: (u32, u32, u32),
     ) -> Result<()> {
         for (name, bind) in binds {
+            if !p.names.contains_key(name) {
+                return Err(Error::Other(format!(
+                    "{}: pass \"{label}\" binds \"{name}\", which the shader does not declare \
+                     (it declares {:?})",
+                    p.name,
+                    p.names.keys().collect::<Vec<_>>()
+                )));
+            }
             self.set(name, bind);
         }
         self.dispatch(label, p, push, threads)
