@@ -51,6 +51,7 @@ pub fn push_layouts() -> Vec<gpu::PushLayout> {
         crate::bake::albedo_mesh::PUSH_LAYOUT,
         crate::gpu::gather::PUSH_LAYOUT,
         crate::view::compose::PUSH_LAYOUT,
+        crate::raster::PUSH_LAYOUT,
     ];
     #[cfg(feature = "test-support")]
     all.push(crate::net::GEMM_PUSH_LAYOUT);

@@ -13,6 +13,13 @@ use crate::scene::Camera;
 pub const POS_DEPTH_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 pub const NORMAL_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 pub const TRI_FORMAT: vk::Format = vk::Format::R32_UINT;
+
+/// The G-buffer's push block is one `Camera` (common/camera.glsl).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    crate::scene::GpuCamera,
+    [shaders::RASTER_GBUFFER_VERT, shaders::RASTER_GBUFFER_FRAG],
+    [r0, r1, r2, intrinsics, size_clip]
+);
 const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 
 /// The G-buffer images, left in GENERAL layout after [`GbufferPass::record`].

@@ -30,7 +30,18 @@ struct Push {
 pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
     Push,
     [shaders::BAKE_ADDED_IRRADIANCE],
-    [view, width, height, samples, seed, pad, light]
+    [
+        view,
+        width,
+        height,
+        samples,
+        seed,
+        pad,
+        light.p0,
+        light.p1,
+        light.p2,
+        light.radiance
+    ]
 );
 
 pub struct AddedIrradiance {

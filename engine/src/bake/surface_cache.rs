@@ -176,7 +176,19 @@ struct Push {
 pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
     Push,
     [shaders::BAKE_SURFACE_CACHE],
-    [first, count, samples, seed, bounces, use_list, pad, light]
+    [
+        first,
+        count,
+        samples,
+        seed,
+        bounces,
+        use_list,
+        pad,
+        light.p0,
+        light.p1,
+        light.p2,
+        light.radiance
+    ]
 );
 
 /// Texels per dispatch: a chunk is a few seconds on lavapipe, so progress shows as it goes.

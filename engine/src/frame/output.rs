@@ -29,7 +29,20 @@ pub struct Push {
 pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
     Push,
     [shaders::FRAME_OUTPUT, shaders::FRAME_OUTPUT_F32],
-    [width, height, mode, exposure, cam, nlights, base, shrink]
+    [
+        width,
+        height,
+        mode,
+        exposure,
+        cam.r0,
+        cam.r1,
+        cam.r2,
+        cam.intrinsics,
+        cam.size_clip,
+        nlights,
+        base,
+        shrink
+    ]
 );
 
 pub const SHADER_F16: crate::gpu::Shader = shaders::FRAME_OUTPUT;

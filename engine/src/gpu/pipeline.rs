@@ -126,7 +126,8 @@ macro_rules! push_layout {
 
 /// Member offsets of the push-constant block, read from the SPIR-V's decorations (rspirv-reflect
 /// gives only the block's range): the PushConstant variable → its pointer type → the struct's
-/// `OpMemberDecorate … Offset`.
+/// `OpMemberDecorate … Offset`. A member that is itself a struct (a `Camera`, a `Light`) gives
+/// its own members' offsets in its place, flattened in order.
 fn push_member_offsets(words: &[u32]) -> Vec<u32> {
     let insts = instructions(words);
     let find = |op: u32, f: &dyn Fn(&[u32]) -> bool| {
@@ -141,15 +142,32 @@ fn push_member_offsets(words: &[u32]) -> Vec<u32> {
     let Some(ptr) = find(op::TYPE_POINTER, &|a| a.len() == 3 && a[0] == var[0]) else {
         return Vec::new();
     };
-    let mut members: Vec<(u32, u32)> = insts
-        .iter()
+    let mut out = Vec::new();
+    struct_offsets(&insts, ptr[2], 0, &mut out);
+    out
+}
+
+/// The flattened member offsets of struct type `id`, each plus `base`, appended to `out`.
+fn struct_offsets(insts: &[(u32, &[u32])], id: u32, base: u32, out: &mut Vec<u32>) {
+    let member_types = (insts.iter())
+        .find(|(o, a)| *o == op::TYPE_STRUCT && a.first() == Some(&id))
+        .map_or(&[][..], |(_, a)| &a[1..]);
+    let mut members: Vec<(u32, u32)> = (insts.iter())
         .filter(|(o, a)| {
-            *o == op::MEMBER_DECORATE && a.len() == 4 && a[0] == ptr[2] && a[2] == op::OFFSET
+            *o == op::MEMBER_DECORATE && a.len() == 4 && a[0] == id && a[2] == op::OFFSET
         })
         .map(|(_, a)| (a[1], a[3]))
         .collect();
     members.sort();
-    members.into_iter().map(|(_, off)| off).collect()
+    for (m, off) in members {
+        let ty = member_types.get(m as usize).copied();
+        let nested = ty
+            .filter(|t| (insts.iter()).any(|(o, a)| *o == op::TYPE_STRUCT && a.first() == Some(t)));
+        match nested {
+            Some(t) => struct_offsets(insts, t, base + off, out),
+            None => out.push(base + off),
+        }
+    }
 }
 
 /// SPIR-V opcodes, decorations and storage classes read here.
