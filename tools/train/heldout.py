@@ -17,7 +17,10 @@ Sets (fixed here, so that every report speaks of the same rooms):
   800003 and 800004 have scenegen's sparse finishes (untextured, few objects, matte floors:
   the hand rooms' kind; added 2026-12-03 when 800002 turned out not to reproduce hand_room2's
   failure), 800004 with the true surfaces as its proxy as the hand rooms have. On 800004 the
-  s7-clean network is 1.6–2.0 dB below ratio, as on hand_room2.
+  s7-clean network is 1.6–2.0 dB below ratio, as on hand_room2. tests/scenes/hand_room3 (added
+  2026-12-03, session 14): a third room written by hand — a glossy dark floor, a rougher
+  near-mirror, lacquered and glossy black furniture, four wall colours, a ceiling strip light —
+  because no scenegen validation room showed the held-out hand rooms' losses under shrink.
 - tiny: one small room (the evaluation's own test).
 
 Per room OUT/<room>/ holds a scene (scene.json, meshes, images/ denoised as a camera's photos
@@ -63,6 +66,7 @@ SETS = {
         ("sg800003", "scenegen:800003", dict(light_views=2, tint="red", finishes="sparse")),
         ("sg800004", "scenegen:800004", dict(light_views=3, tint="cold", finishes="sparse",
                                              proxy_error=0)),
+        ("hand_room3", "tests/scenes/hand_room3", dict(tint="magenta")),
     ],
     "tiny": [
         ("sg700100", "scenegen:700100", dict(light_views=1, tint="red", views=6, res=(48, 36),
