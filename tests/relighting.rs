@@ -274,6 +274,17 @@ fn clipped_lights_are_found_in_jpeg_photos_and_the_bake_stays_unbiased() {
         "power {ratio:.3} of the truth's"
     );
 
+    // A proxy without the ceiling (as a surface over sparse SfM points often is): nothing can be
+    // placed, and the command says why rather than finding nothing in silence.
+    let floor = dir.join("floor.ply");
+    let (d, m) = (dir.to_str().unwrap(), floor.to_str().unwrap());
+    let (code, so, se) = common::run_relit(&["scene", "find-lights", d, "--dry-run", "--mesh", m]);
+    assert_eq!(code, 0, "{so}{se}");
+    assert!(
+        so.contains("no light found") && so.contains("see no surface of the proxy mesh"),
+        "{so}"
+    );
+
     // With the light found, E_src is unbiased again (it was the point of Appendix A).
     let a = bake_and_evaluate(&found);
     assert!((0.9..=1.1).contains(&a.e_src.ratio), "E_src: {:?}", a.e_src);

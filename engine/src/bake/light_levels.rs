@@ -84,6 +84,9 @@ impl FoundLight {
 pub struct Finding {
     pub lights: Vec<FoundLight>,
     pub clipped_pixels: usize,
+    /// Clipped pixels on no surface of the proxy mesh: they cannot be placed in 3D (a lamp on
+    /// a ceiling that a surface over sparse SfM points does not reach).
+    pub off_mesh: usize,
     /// The voxel edge used (m).
     pub voxel: f32,
 }
@@ -107,6 +110,9 @@ pub fn find(
     let cams: Vec<_> = scene.views.iter().map(|v| v.camera.clone()).collect();
     let data = ViewData::from_photos(gpu, &mesh, &cams, &photos)?;
     let voxel = voxel_size(&data, p.voxel);
+    let off_mesh = (0..data.pos.len())
+        .filter(|&q| data.clipped(q) && data.pos[q][3] <= 0.0)
+        .count();
     let known_gpu = original_lights(&known);
     let regions: Vec<Vec<usize>> = regions(&data, voxel, p)
         .into_iter()
@@ -131,6 +137,7 @@ pub fn find(
     Ok(Finding {
         lights,
         clipped_pixels,
+        off_mesh,
         voxel,
     })
 }
