@@ -32,6 +32,15 @@ class CaptureGeometry(unittest.TestCase):
         n = C.normals(p, down)
         self.assertGreater(float((n @ [0, 0, -1]).min()), 0.99)
 
+    def test_poisson_depth_follows_the_points_spacing(self):
+        room = np.array([[0.0, 0.0, 0.0], [4.0, 2.5, 3.0]])
+        self.assertEqual(C.poisson_depth(room, 0.09), 8, "a room's points: the usual depth")
+        # one object with far background points (AliceVision's buddha: 60 m against 0.09 m)
+        far = np.array([[0.0, 0.0, 0.0], [49.4, 24.6, 60.2]])
+        self.assertEqual(C.poisson_depth(far, 0.09), 12)
+        cell = 1.1 * 30.0 / 2 ** C.poisson_depth(np.array([[0.0] * 3, [30.0] * 3]), 0.09)
+        self.assertLessEqual(cell, 0.09 / 4, "cells within a quarter of the trim's reach")
+
     def test_written_mesh_is_read_by_relit(self):
         relit = os.environ.get("RELIT")
         if not relit:
