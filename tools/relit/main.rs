@@ -504,22 +504,6 @@ fn info(opts: &GpuOptions) -> Result<()> {
     Ok(())
 }
 
-/// Why find-lights found nothing although photos clip.
-fn nothing_found(clipped: usize, off_mesh: usize) -> String {
-    if 2 * off_mesh >= clipped {
-        format!(
-            "no light found: {off_mesh} of the {clipped} clipped pixels see no surface of the proxy \
-             mesh, so they cannot be placed in 3D (a lamp on a ceiling or wall the mesh does not \
-             reach: a surface over sparse SfM points often lacks the ceiling). Give a mesh that \
-             covers it (--mesh FILE) or declare the light by hand (README › Scene formats)"
-        )
-    } else {
-        "no light found: no region of at least 3 voxels where half the pixels clip (a clipped \
-         highlight on a glossy surface clips in one view, not in the others)"
-            .to_string()
-    }
-}
-
 fn find_lights(
     opts: &GpuOptions,
     dir: &std::path::Path,
@@ -554,8 +538,9 @@ fn find_lights(
     );
     if f.clipped_pixels == 0 {
         println!("no photo clips (8-bit photos clip at code 250 of 255; EXR photos never do): nothing to find");
-    } else if f.lights.is_empty() {
-        println!("{}", nothing_found(f.clipped_pixels, f.off_mesh));
+    }
+    if let Some(why) = f.why_none(&p) {
+        println!("{why}");
     }
     for l in &f.lights {
         let c = l.light.shape.center();

@@ -91,6 +91,32 @@ pub struct Finding {
     pub voxel: f32,
 }
 
+impl Finding {
+    /// Why nothing was found although photos clip (`None` when a light was found or nothing
+    /// clipped): most clipped pixels off the proxy, or no region that meets `p`'s thresholds.
+    pub fn why_none(&self, p: &FindParams) -> Option<String> {
+        if !self.lights.is_empty() || self.clipped_pixels == 0 {
+            return None;
+        }
+        let (off, all) = (self.off_mesh, self.clipped_pixels);
+        Some(if 2 * off >= all {
+            format!(
+                "no light found: {off} of the {all} clipped pixels see no surface of the proxy \
+                 mesh, so they cannot be placed in 3D (a lamp on a ceiling or wall the mesh does \
+                 not reach: a surface over sparse SfM points often lacks the ceiling). Give a mesh \
+                 that covers it (--mesh FILE) or declare the light by hand (README › Scene formats)"
+            )
+        } else {
+            format!(
+                "no light found: no region of at least {} voxels where {:.0} % of the pixels clip \
+                 (a clipped highlight on a glossy surface clips in one view, not in the others)",
+                p.min_voxels,
+                100.0 * p.min_clipped
+            )
+        })
+    }
+}
+
 /// Finds the lights `scene`'s photos clip (none when nothing clipped). Lights the scene already
 /// declares (not `estimated`) count as known: their pixels and light are not searched again.
 pub fn find(
