@@ -378,25 +378,31 @@ fn leave_one_out_excludes_the_view_from_every_pass() {
 
 /// Network mode end to end: the frame's output equals the output transform applied to the
 /// network run separately on the frame's own input tensor, for both bases (the ratio base is
-/// formed from that input by `output::ratio_base`, as `model.py` forms it), and with `shrink`.
+/// formed from that input by `output::ratio_base`, as `model.py` forms it), with `shrink`, and
+/// with `gate` under a dimmed original light and a lamp (the lamp's share of the light, 0.3–0.5,
+/// below the gate's 1: every correction scaled).
 #[test]
 fn network_mode_output_matches_network_on_the_frame_input() {
     let gpu = common::gpu();
     let t = tiny();
-    for (storage, base, shrink) in [
-        (Storage::F32, NetBase::None, 0.0),
-        (Storage::F16, NetBase::None, 0.0),
-        (Storage::F32, NetBase::Ratio, 0.0),
-        (Storage::F16, NetBase::Ratio, 0.0),
-        (Storage::F32, NetBase::Ratio, 0.02),
+    for (storage, base, shrink, gate) in [
+        (Storage::F32, NetBase::None, 0.0, 0.0),
+        (Storage::F16, NetBase::None, 0.0, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.0, 0.0),
+        (Storage::F16, NetBase::Ratio, 0.0, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.02, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.0, 1.0),
+        (Storage::F16, NetBase::Ratio, 0.02, 1.0),
     ] {
+        let lights = if gate > 0.0 { &t.lights[..] } else { &[] };
         let scene =
-            FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, &[], MapFormat::Rgba16f)
+            FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, lights, MapFormat::Rgba16f)
                 .unwrap();
         let mut cfg = NetConfig::paper(8);
         cfg.levels = 3;
         cfg.base = base;
         cfg.shrink = shrink;
+        cfg.gate = gate;
         let mk = || {
             Network::from_params(
                 NetKernels::new(&gpu, storage).unwrap(),
@@ -406,9 +412,15 @@ fn network_mode_output_matches_network_on_the_frame_input() {
             .unwrap()
         };
         let mut r = Renderer::new(&gpu, scene, Some(mk()), storage).unwrap();
-        let lighting = Lighting {
-            intensities: vec![],
-            alpha_dim: 0.0,
+        let lighting = match gate > 0.0 {
+            true => Lighting {
+                intensities: vec![0.0, 0.5],
+                alpha_dim: 0.5,
+            },
+            false => Lighting {
+                intensities: vec![],
+                alpha_dim: 0.0,
+            },
         };
         r.render(&t.novel, &lighting, Mode::Network, 2.0, None)
             .unwrap();
@@ -419,19 +431,19 @@ fn network_mode_output_matches_network_on_the_frame_input() {
         let has = surface_mask(b);
         let out = mk().run(&input, h, w).unwrap();
         let ratio_in = (base == NetBase::Ratio).then_some(&input[..]);
-        let want = output::reference_network(&out, ratio_in, shrink, npix, &has);
-        if shrink > 0.0 {
-            let unshrunk = output::reference_network(&out, ratio_in, 0.0, npix, &has);
+        let want = output::reference_network(&out, ratio_in, (shrink, gate), npix, &has);
+        if shrink > 0.0 || gate > 0.0 {
+            let plain = output::reference_network(&out, ratio_in, (0.0, 0.0), npix, &has);
             assert!(
-                want != unshrunk,
-                "shrink {shrink} changed nothing: not a test of it"
+                want != plain,
+                "shrink {shrink}, gate {gate} changed nothing: not a test of them"
             );
         }
         assert_close(
             &r.hdr().unwrap(),
             &want,
             1e-3,
-            &format!("{storage:?} {base:?} shrink {shrink}"),
+            &format!("{storage:?} {base:?} shrink {shrink} gate {gate}"),
         );
         assert!(r
             .render(&t.novel, &lighting, Mode::Network, 1.0, None)
@@ -471,6 +483,70 @@ fn untrained_ratio_network_renders_the_ratio_image() {
         r.render(&t.novel, &lighting, Mode::Network, 1.0, None)
             .unwrap();
         assert_close(&r.hdr().unwrap(), &ratio, tol, &format!("{storage:?}"));
+    }
+    common::assert_no_validation_errors(&gpu);
+}
+
+/// A gated network (`gate` > 0, random weights, so every correction is large) where no lamp
+/// reaches (the photos' lighting, and the original light dimmed alone: the new light's share is
+/// 0) renders ratio mode's image on every covered pixel (the same arithmetic: within 1e-6, with
+/// fp32 and fp16 storage alike) and still fills the holes; with a lamp on, the same network
+/// does not render it.
+#[test]
+fn gated_network_renders_the_ratio_image_where_no_lamp_reaches() {
+    let gpu = common::gpu();
+    let t = tiny();
+    for storage in [Storage::F32, Storage::F16] {
+        let scene = FrameScene::from_parts(
+            &gpu,
+            &t.mesh,
+            &t.cams,
+            &t.host,
+            &t.lights,
+            MapFormat::Rgba16f,
+        )
+        .unwrap();
+        let mut cfg = NetConfig::paper(8);
+        (cfg.levels, cfg.base, cfg.gate) = (3, NetBase::Ratio, 0.25);
+        let kernels = NetKernels::new(&gpu, storage).unwrap();
+        let net = Network::from_params(kernels, cfg, &RandomParams(7)).unwrap();
+        let mut r = Renderer::new(&gpu, scene, Some(net), storage).unwrap();
+        let mut frame = |lamp: f32, alpha_dim, mode| {
+            let lighting = Lighting {
+                intensities: vec![0.0, lamp],
+                alpha_dim,
+            };
+            r.render(&t.novel, &lighting, mode, 1.0, None).unwrap();
+            (rgb(&r), r.buffers_ref().unwrap().composites().unwrap())
+        };
+        let (ulr, comp) = frame(0.0, 0.0, Mode::Ulr);
+        let npix = ulr.len();
+        let covered: Vec<usize> = (0..npix)
+            .filter(|&p| comp[p][..3].iter().any(|&c| c != 0.0))
+            .collect();
+        assert!(covered.len() < npix, "no holes: not a test of them");
+        let pick =
+            |img: &[[f32; 3]]| -> Vec<[f32; 3]> { covered.iter().map(|&p| img[p]).collect() };
+        let four = |img: Vec<[f32; 3]>| -> Vec<[f32; 4]> {
+            img.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect()
+        };
+        for alpha_dim in [0.0, 0.5] {
+            let (ratio, _) = frame(0.0, alpha_dim, Mode::Ratio);
+            let (network, _) = frame(0.0, alpha_dim, Mode::Network);
+            let what = format!("{storage:?} α_dim {alpha_dim}, covered");
+            assert_close(&four(pick(&network)), &pick(&ratio), 1e-6, &what);
+            let holes_lit = (0..npix).any(|p| !covered.contains(&p) && network[p][0] > 0.0);
+            assert!(holes_lit, "{storage:?}: the gate blanked the holes");
+        }
+        let (lit_ratio, _) = frame(1.0, 0.5, Mode::Ratio);
+        let (lit_net, _) = frame(1.0, 0.5, Mode::Network);
+        let moved = covered.iter().filter(|&&p| {
+            (lit_net[p][0] - lit_ratio[p][0]).abs() > 0.05 * lit_ratio[p][0].abs().max(1.0)
+        });
+        assert!(
+            moved.count() > 0,
+            "{storage:?}: with a lamp on, the gate let nothing through"
+        );
     }
     common::assert_no_validation_errors(&gpu);
 }

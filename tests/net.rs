@@ -183,26 +183,32 @@ fn network_matches_pytorch_golden() {
 
 /// A network with base "ratio": the output pass's CPU reference (`reference_network` with the
 /// input) turns the raw golden output into the image PyTorch composes (`model.py`: the ratio
-/// base added to O_d), within 1e-4 of the image's scale, without `shrink` and with the golden's
-/// (every correction soft-thresholded); the GPU output pass is held to that reference by
+/// base added to O_d), within 1e-4 of the image's scale, without `shrink` or `gate`, with the
+/// golden's shrink (every correction soft-thresholded) and with its gate (every correction scaled
+/// by the input's change of lighting); the GPU output pass is held to that reference by
 /// tests/frame.rs.
 #[test]
 fn ratio_base_matches_pytorch_golden() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
     let io = std::fs::read(dir.join("net_w12r.io.safetensors")).unwrap();
     let (_, meta) = safetensors::SafeTensors::read_metadata(&io).unwrap();
-    let shrink: f32 = meta.metadata().as_ref().unwrap()["shrink"].parse().unwrap();
-    assert!(shrink > 0.0);
+    let value = |k: &str| -> f32 { meta.metadata().as_ref().unwrap()[k].parse().unwrap() };
+    let (shrink, gate) = (value("shrink"), value("gate"));
+    assert!(shrink > 0.0 && gate > 0.0);
     let st = safetensors::SafeTensors::deserialize(&io).unwrap();
     let (_, x, y, shape) = golden("net_w12r");
     let npix = shape[1] * shape[2];
     let untm = relit_engine::frame::features::untonemap;
-    for (key, tau) in [("image", 0.0), ("image_shrink", shrink)] {
+    for (key, options) in [
+        ("image", (0.0, 0.0)),
+        ("image_shrink", (shrink, 0.0)),
+        ("image_gate", (0.0, gate)),
+    ] {
         let image: Vec<f32> = bytemuck::pod_collect_to_vec(st.tensor(key).unwrap().data());
         let got = relit_engine::frame::output::reference_network(
             &y,
             Some(&x),
-            tau,
+            options,
             npix,
             &vec![true; npix],
         );

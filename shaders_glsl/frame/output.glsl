@@ -10,7 +10,9 @@
 // A network with base "ratio" (model.py) corrects the ratio image: its diffuse output is added
 // to tm(R), R formed from the network's own input channels (I_1, E_src/π, E_add/π, E_rem/π,
 // untonemapped), as model.py's ratio_base does, so the trainer and the engine compute the same.
-// Its shrink τ soft-thresholds each correction where I_1 (the input's channels 0–2) is not black.
+// Its shrink τ soft-thresholds each correction where I_1 (the input's channels 0–2) is not black;
+// its gate G then scales it there by min(1, f / G), f = max over RGB of E_add / (E_src − E_rem +
+// E_add), the new light's share: where no lamp reaches, the image is ratio's exactly.
 #extension GL_EXT_scalar_block_layout : require
 #include "act_storage.glsl"
 #include "camera.glsl"
@@ -32,6 +34,7 @@ layout(push_constant, scalar) uniform Push {
     uint nlights;
     uint base;       // NetBase: 0 none, 1 ratio
     float shrink;    // NetConfig::shrink (0: none)
+    float gate;      // NetConfig::gate (0: none)
 } pc;
 
 const uint MODE_NETWORK = 0u;
@@ -52,7 +55,38 @@ vec3 ratio_base(uint p, uint npix) {
     return tm(i1 / max(es, vec3(E_FLOOR / 3.14159265358979)) * (ea + es - er));
 }
 
+// f: the new light's share of the pixel's light, from the same channels.
+float new_light_share(uint p, uint npix) {
+    vec4 g12 = vec4(x[12u * npix + p]), g13 = vec4(x[13u * npix + p]), g14 = vec4(x[14u * npix + p]);
+    vec3 es = untm(vec3(g12.w, g13.x, g13.y)), ea = untm(vec3(g13.z, g13.w, g14.x));
+    vec3 f = ea / max(es - untm(g14.yzw) + ea, vec3(E_FLOOR / 3.14159265358979));
+    return max(f.r, max(f.g, f.b));
+}
+
+// Eq. 5's ratio image from the composite and the irradiance planes, as ratio mode shows it.
+vec3 ratio_image(uint p, uint npix) {
+    vec3 es = irr[p].rgb;
+    return vec3(comp[p].rgb) / max(es, vec3(E_FLOOR)) * (irr[npix + p].rgb + es - irr[2u * npix + p].rgb);
+}
+
 vec3 soft_threshold(vec3 c, float t) { return sign(c) * max(abs(c) - t, vec3(0.0)); }
+
+// Network mode's image: O_d + O_v, and with base "ratio" the ratio base plus the corrections,
+// soft-thresholded and gated on covered pixels. A closed gate leaves ratio's own image (not its
+// round trip through the input tensor, which fp16 storage rounds).
+vec3 network_image(uint p, uint npix) {
+    vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
+    vec3 od = a.xyz, ov = vec3(a.w, b.x, b.y);
+    if (pc.base == 1u) {
+        bool covered = any(notEqual(vec4(x[p]).xyz, vec3(0.0)));
+        float t = covered ? pc.shrink : 0.0;
+        float w = covered && pc.gate > 0.0 ? min(new_light_share(p, npix) / pc.gate, 1.0) : 1.0;
+        if (w == 0.0) return ratio_image(p, npix);
+        od = w * soft_threshold(od, t) + ratio_base(p, npix);
+        ov = w * soft_threshold(ov, t);
+    }
+    return untm(max(od + ov, vec3(0.0)));
+}
 
 float srgb(float x) {
     x = clamp(x, 0.0, 1.0);
@@ -69,20 +103,11 @@ void main() {
     bool hole = all(equal(vec3(comp[p].rgb), vec3(0.0)));
     if (xp.w > 0.0) {
         if (pc.mode == MODE_NETWORK || (pc.mode == MODE_RATIO_FILLED && hole)) {
-            vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
-            vec3 od = a.xyz, ov = vec3(a.w, b.x, b.y);
-            if (pc.base == 1u) {
-                float t = any(notEqual(vec4(x[p]).xyz, vec3(0.0))) ? pc.shrink : 0.0;
-                od = soft_threshold(od, t) + ratio_base(p, npix);
-                ov = soft_threshold(ov, t);
-            }
-            vec3 tmo = max(od + ov, vec3(0.0));
-            c = untm(tmo);
+            c = network_image(p, npix);
         } else if (pc.mode == MODE_ULR) {
             c = vec3(comp[p].rgb);
         } else {
-            vec3 es = irr[p].rgb;
-            c = vec3(comp[p].rgb) / max(es, vec3(E_FLOOR)) * (irr[npix + p].rgb + es - irr[2u * npix + p].rgb);
+            c = ratio_image(p, npix);
         }
     }
     vec3 eye = cam_center(pc.cam);

@@ -1020,10 +1020,14 @@ fn shipped_network() -> String {
         true => String::new(),
         false => format!(" averaged with step {}", steps.join(", ")),
     };
-    let base = match (net["base"].as_str(), net["shrink"].as_f64()) {
-        (Some(b), Some(t)) => format!(", base {b}, shrink {t}"),
-        (Some(b), None) => format!(", base {b}"),
-        _ => String::new(),
+    let option = |k: &str| {
+        net[k]
+            .as_f64()
+            .map_or(String::new(), |v| format!(", {k} {v}"))
+    };
+    let base = match net["base"].as_str() {
+        Some(b) => format!(", base {b}{}{}", option("shrink"), option("gate")),
+        None => String::new(),
     };
     format!(
         "width {}{base}, run {} at step {}{averaged}, built into relit from {}",

@@ -2,6 +2,7 @@
 weights file (`relit render --weights W`) and the run's curves.png.
 
     python tools/train/export.py RUN|W [--out W] [--dtype f16|f32] [--average W1 ...] [--shrink T]
+        [--gate G]
 
 RUN is a run directory (its checkpoint is exported), W weights a run kept along the way
 (`train.py --save-every`).
@@ -17,6 +18,10 @@ into the "relit.trained" metadata.
 `--shrink T` sets the exported network's soft threshold on its corrections (model.py's
 `shrink`, base "ratio" only): a correction smaller than T in tonemapped space leaves the ratio
 image as it is. Choose T on the validation rooms (evaluate.py), never on held-out ones.
+
+`--gate G` sets the exported network's gate (model.py's `gate`, base "ratio" only): on a
+covered pixel each correction is scaled by min(1, f / G), f the new light's share of the pixel's
+light, so that where no lamp reaches the image is ratio's exactly.
 """
 
 import argparse
@@ -72,17 +77,23 @@ def load_base(run):
     return net, {"run": os.path.basename(os.path.abspath(run)), "step": c["step"]}
 
 
-def export(run, out, dtype, average=(), shrink=None):
+def with_option(net, key, value):
+    """net with config[key] = value, checked as the model checks it (exits on a bad value)."""
+    cfg = dict(net.config, **{key: value})
+    try:
+        M.RelightNet(**cfg)
+    except ValueError as e:
+        sys.exit(f"--{key} {value}: {e}")
+    net.config = cfg
+
+
+def export(run, out, dtype, average=(), shrink=None, gate=None):
     net, trained = load_base(run)
     if average:
         trained["averaged_with"] = average_into(net, average)
-    if shrink is not None:
-        cfg = dict(net.config, shrink=shrink)
-        try:
-            M.RelightNet(**cfg)
-        except ValueError as e:
-            sys.exit(f"--shrink {shrink}: {e}")
-        net.config = cfg
+    for key, value in (("shrink", shrink), ("gate", gate)):
+        if value is not None:
+            with_option(net, key, value)
     tmp = out + ".tmp"
     M.save(net, tmp, dtype={"f16": torch.float16, "f32": torch.float32}[dtype], trained=trained)
     os.replace(tmp, out)
@@ -101,11 +112,13 @@ def main():
                     help="weights files of the same network to average with the checkpoint's")
     ap.add_argument("--shrink", type=float, metavar="T",
                     help="soft threshold on the corrections (base ratio): below T, the ratio image")
+    ap.add_argument("--gate", type=float, metavar="G",
+                    help="scale corrections by min(1, new light's share / G) (base ratio)")
     a = ap.parse_args()
     if not a.out and not os.path.isdir(a.run):
         sys.exit("--out is needed when exporting a weights file")
     out = a.out or os.path.join(a.run, "weights.safetensors")
-    step = export(a.run, out, a.dtype, a.average, a.shrink)
+    step = export(a.run, out, a.dtype, a.average, a.shrink, a.gate)
     print(f"{out}: step {step}, {os.path.getsize(out) / 1e6:.1f} MB ({a.dtype})"
           + (f", averaged with {', '.join(a.average)}" if a.average else ""))
 

@@ -7,7 +7,8 @@ convs) and a random input, with the PyTorch output computed in float64.
 (CASE: some of the cases below, by name; default all). A case with base "ratio" also holds
 "image": the composed [O_d, O_v] (the ratio base added to O_d), which the engine's output
 pass must reproduce from the raw output and the input (`frame::output::reference_network`),
-and "image_shrink": the same with `shrink` τ = SHRINK (the file's metadata "shrink").
+"image_shrink": the same with `shrink` τ = SHRINK (the file's metadata "shrink"), and
+"image_gate": the same with `gate` G = GATE (metadata "gate"), no shrink.
 
 and, whenever the shipped weights change, the output of the trained network built into relit
 (engine/weights/relit.safetensors) on a random input, with the weights' metadata copied so that
@@ -37,6 +38,9 @@ CASES = {
 
 # The soft threshold of the "image_shrink" golden (the random corrections are ~1 in size).
 SHRINK = 0.05
+# The gate of "image_gate": against the random input's new-light share f (its E_rem may exceed
+# E_src, so f spreads over 0.5–1e4), about a quarter of the corrections are scaled down.
+GATE = 2.0
 
 
 def randomize(net, gen):
@@ -75,7 +79,14 @@ def main(out, names=()):
             with torch.no_grad():
                 io["image_shrink"] = net(x)[0].float().contiguous()
             net.config["shrink"] = 0.0
-            meta = {"shrink": str(SHRINK)}
+            net.config["gate"] = GATE
+            with torch.no_grad():
+                io["image_gate"] = net(x)[0].float().contiguous()
+                w = M.gate_weight(x, GATE)
+            net.config["gate"] = 0.0
+            print(f"{name}: gate weights {float(w.min()):.3f}..{float(w.max()):.3f}, "
+                  f"{float((w < 1).float().mean()) * 100:.0f}% below 1")
+            meta = {"shrink": str(SHRINK), "gate": str(GATE)}
         save_file(io, out / f"{name}.io.safetensors", metadata=meta)
         print(name, tuple(y.shape), float(y.abs().max()))
 

@@ -17,6 +17,14 @@ Structure (W = width):
   shrink         : τ ≥ 0 (base "ratio" only): on covered pixels (I_1 not black) each correction
                    channel c becomes sign(c)·max(|c| − τ, 0), so corrections smaller than τ
                    (tonemapped) leave the ratio image as it is; 0 (default) keeps them all.
+  gate           : G ≥ 0 (base "ratio" only): on covered pixels each correction is scaled by
+                   min(1, f / G), f the new light's share of the pixel's light, max over RGB of
+                   E_add / (E_src − E_rem + E_add) (the denominator floored as ratio_base floors
+                   E_src). Light is linear and α_dim scales every original light alike, so where
+                   no lamp reaches (f = 0) the truth is (1 − α_dim) × the photos' lighting and
+                   ratio's image, (1 − α_dim) × I_1, is exactly as right as the photos'
+                   composite: the image is ratio's there, whatever the weights, and the network
+                   corrects only what the new light brings. 0 (default): no gate.
 
 Choices where the paper is silent (documented in the README): no activation after the
 downsampling convs, the input conv is linear, the output conv is linear with a bias.
@@ -32,7 +40,8 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 DEFAULT_CONFIG = dict(in_channels=66, width=66, trunk_blocks=4, levels=5, level_blocks=4,
-                      tail_blocks=2, out_channels=6, base="none", shrink=0.0)
+                      tail_blocks=2, out_channels=6, base="none", shrink=0.0,
+                      gate=0.0)
 BASES = ("none", "ratio")
 from constants import E_FLOOR as _E_FLOOR, MU
 
@@ -53,8 +62,14 @@ def untm(y):
 
 def full_config(cfg):
     """A configuration with every key: checkpoints and files written before a key existed
-    (base, shrink) hold its default."""
+    (base, shrink, gate) hold its default."""
     return dict(DEFAULT_CONFIG, **cfg)
+
+
+def parameters_of(cfg):
+    """The keys of a configuration that decide the parameters (not shrink or gate, which act on
+    the output): two networks with equal ones can load each other's weights."""
+    return {k: v for k, v in full_config(cfg).items() if k not in ("shrink", "gate")}
 
 
 def soft_threshold(c, tau):
@@ -72,6 +87,18 @@ def ratio_base(x):
     (N×66×H×W); zero where no view covers the pixel (I_1 = 0)."""
     i1, es, ea, er = (untm(x[:, c]) for c in (I1, E_SRC, E_ADD, E_REM))
     return tm(i1 / es.clamp(min=ES_FLOOR) * (ea + es - er))
+
+
+def new_light_share(x):
+    """N×1×H×W: f = max over RGB of E_add / (E_src − E_rem + E_add) at each pixel, from the
+    input tensor (the denominator floored at ES_FLOOR): 0 where no lamp reaches the pixel."""
+    es, ea, er = (untm(x[:, c]) for c in (E_SRC, E_ADD, E_REM))
+    return (ea / (es - er + ea).clamp(min=ES_FLOOR)).amax(1, keepdim=True)
+
+
+def gate_weight(x, g):
+    """N×1×H×W: min(1, f / G) on covered pixels, 1 in the holes (`gate`)."""
+    return torch.where(covered(x), (new_light_share(x) / g).clamp(max=1.0), torch.ones_like(x[:, :1]))
 
 
 class FixupBlock(nn.Module):
@@ -113,6 +140,10 @@ class RelightNet(nn.Module):
             raise ValueError(f"shrink {c['shrink']!r}: expected a finite value >= 0")
         if c["shrink"] > 0 and c["base"] != "ratio":
             raise ValueError("shrink applies to a network with base \"ratio\" only")
+        if not (c["gate"] >= 0 and math.isfinite(c["gate"])):
+            raise ValueError(f"gate {c['gate']!r}: expected a finite value >= 0")
+        if c["gate"] > 0 and c["base"] != "ratio":
+            raise ValueError("gate applies to a network with base \"ratio\" only")
         self.config = c
         w = c["width"]
         total = c["trunk_blocks"] + c["levels"] * c["level_blocks"] + c["tail_blocks"]
@@ -136,6 +167,9 @@ class RelightNet(nn.Module):
                 seen = covered(x)
                 cd = torch.where(seen, soft_threshold(cd, tau), cd)
                 cv = torch.where(seen, soft_threshold(cv, tau), cv)
+            if self.config["gate"] > 0:
+                w = gate_weight(x, self.config["gate"])
+                cd, cv = cd * w, cv * w
             y = torch.cat([cd + ratio_base(x), cv], 1)
         return y
 
@@ -177,6 +211,8 @@ def save(model, path, dtype=torch.float32, trained=None):
         del cfg["base"]  # as files written before the option, which every engine reads
     if cfg["shrink"] == 0:
         del cfg["shrink"]  # likewise
+    if cfg["gate"] == 0:
+        del cfg["gate"]  # likewise
     meta = {"relit.net": json.dumps(cfg, sort_keys=True)}
     if trained is not None:
         meta["relit.trained"] = json.dumps(trained, sort_keys=True)

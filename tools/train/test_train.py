@@ -106,6 +106,43 @@ class TrainerTest(unittest.TestCase):
         self.assertNotEqual(r.returncode, 0)     # resumed without the term it was trained with
         self.assertIn("correction_l1", r.stderr)
 
+    def test_the_gate_leaves_ratio_where_no_lamp_reaches_and_passes_the_lamps_light(self):
+        sys.path.insert(0, HERE)
+        import torch
+        import model as M
+        net = M.RelightNet(width=8, trunk_blocks=1, level_blocks=1, tail_blocks=1, base="ratio",
+                           gate=0.25)
+        with torch.no_grad():
+            net.out_conv.bias.fill_(0.5)        # every correction 0.5
+        x = torch.rand(1, net.config["in_channels"], 32, 32) * 0.5 + 0.25
+        x[:, M.I1, :16] = 0                     # the top half is a hole
+        es = M.untm(x[:, M.E_SRC])
+        x[:, M.E_ADD] = 0
+        for removed in (0.0, 0.5):              # the photos' lighting, the original dimmed
+            x[:, M.E_REM] = M.tm(es * removed)
+            out = net(x)
+            self.assertEqual((out[:, :3, 16:] - M.ratio_base(x)[:, :, 16:]).abs().max().item(), 0.0)
+            self.assertEqual(out[:, 3:, 16:].abs().max().item(), 0.0)
+            self.assertAlmostEqual(out[:, 3:, :16].min().item(), 0.5, places=5)   # holes: whole
+        x[:, M.E_REM] = x[:, M.E_SRC]           # the original off, a lamp: its share is 1 > G
+        x[:, M.E_ADD] = M.tm(es)
+        self.assertAlmostEqual((net(x)[:, :3] - M.ratio_base(x)).min().item(), 0.5, places=4)
+        x[:, M.E_REM] = 0                       # a lamp bringing a tenth of the light: w = 0.4
+        x[:, M.E_ADD] = M.tm(es / 9)
+        c = net(x)[:, 3:, 16:]
+        self.assertAlmostEqual(c.mean().item(), 0.5 * 0.4, places=3)
+        with self.assertRaises(ValueError):
+            M.RelightNet(width=8, gate=0.25)    # base none: nothing to gate
+        run = self.run_dir("gated")
+        r = train(self.data, run, "--steps", "2", "--base", "ratio", "--gate", "0.25")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(M.load(os.path.join(run, "weights.safetensors")).config["gate"], 0.25)
+        out = os.path.join(run, "ungated.safetensors")
+        r = subprocess.run([sys.executable, os.path.join(HERE, "export.py"), run, "--out", out,
+                            "--gate", "0"], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(M.load(out).config["gate"], 0.0)
+
     def test_a_signal_stops_the_run_at_a_checkpoint_that_resumes(self):
         run = self.run_dir("signal")
         args = [sys.executable, os.path.join(HERE, "train.py"), "--data", self.data, "--out", run,

@@ -235,6 +235,9 @@ def parse_args():
                     help="torch device: cpu or cuda (under torchrun, each process takes its own GPU)")
     ap.add_argument("--correction-l1", type=float, default=0.0, metavar="λ",
                     help="base ratio: λ · mean |correction| on covered pixels (0: off)")
+    ap.add_argument("--gate", type=float, default=0.0, metavar="G",
+                    help="base ratio: scale corrections by min(1, new light's share / G) on "
+                         "covered pixels, so that where no lamp reaches the image is ratio's (0: off)")
     ap.add_argument("--vgg", type=float, default=0.1, help="λ_vgg of the perceptual terms (0: off)")
     ap.add_argument("--multiview", type=float, default=1.0,
                     help="weight of the multi-view consistency term (0: off)")
@@ -260,9 +263,9 @@ def init_from(a, net, opt, disc, opt_d, lead):
     if not os.path.exists(a.init_from):
         sys.exit(f"{a.init_from}: no checkpoint to start from (--init-from)")
     c = torch.load(a.init_from, weights_only=False, map_location=a.device)
-    if M.full_config(c["config"]) != net.config:
+    if M.parameters_of(c["config"]) != M.parameters_of(net.config):
         sys.exit(f"{a.init_from}: network {c['config']} differs from {net.config} "
-                 "(--width, --*-blocks)")
+                 "(--width, --*-blocks, --base)")
     net.load_state_dict(c["model"])
     opt.load_state_dict(c["optimizer"])
     if disc is not None and c.get("disc") is not None:
@@ -284,7 +287,7 @@ def init_weights(a, net, lead):
         src = M.load(a.init_weights)
     except (OSError, KeyError, ValueError) as e:
         sys.exit(f"{a.init_weights}: not a weights file ({e})")
-    shape = lambda c: {k: v for k, v in c.items() if k not in ("base", "shrink")}
+    shape = lambda c: {k: v for k, v in M.parameters_of(c).items() if k != "base"}
     if shape(src.config) != shape(net.config):
         sys.exit(f"{a.init_weights}: network {src.config} differs from {net.config} "
                  "(--width, --*-blocks)")
@@ -371,6 +374,8 @@ def main():
         sys.exit("--resume continues this run, --init-from starts one: pass one of them")
     if a.correction_l1 and a.base != "ratio":
         sys.exit("--correction-l1 needs --base ratio (a correction is relative to the ratio image)")
+    if a.gate and a.base != "ratio":
+        sys.exit("--gate needs --base ratio (it scales the corrections to the ratio image)")
     if a.threads:
         torch.set_num_threads(a.threads)
     torch.use_deterministic_algorithms(True)
@@ -390,7 +395,7 @@ def main():
     # The same initial weights in every process; the data each draws differs.
     torch.manual_seed(a.seed)
     net = M.RelightNet(width=a.width, trunk_blocks=a.trunk_blocks, level_blocks=a.level_blocks,
-                       tail_blocks=a.tail_blocks, base=a.base).to(a.device)
+                       tail_blocks=a.tail_blocks, base=a.base, gate=a.gate).to(a.device)
     opt = torch.optim.RMSprop(net.parameters(), lr=a.lr)
     disc = A.Discriminator().to(a.device) if a.adv > 0 else None
     opt_d = torch.optim.RMSprop(disc.parameters(), lr=a.lr) if disc is not None else None

@@ -826,6 +826,7 @@ impl Renderer {
                     _ => 0,
                 },
                 shrink: self.net.as_ref().map_or(0.0, |n| n.config.shrink),
+                gate: self.net.as_ref().map_or(0.0, |n| n.config.gate),
             },
         }
     }

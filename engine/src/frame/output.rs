@@ -23,6 +23,8 @@ pub struct Push {
     pub base: u32,
     /// [`crate::net::NetConfig::shrink`].
     pub shrink: f32,
+    /// [`crate::net::NetConfig::gate`].
+    pub gate: f32,
 }
 
 /// Push as its shaders' push block declares it (tests/gpu.rs checks).
@@ -41,7 +43,8 @@ pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
         cam.size_clip,
         nlights,
         base,
-        shrink
+        shrink,
+        gate
     ]
 );
 
@@ -61,11 +64,14 @@ pub fn srgb(x: f32) -> f32 {
 /// CPU reference of network mode: linear RGB per pixel from the 6 output channels (planar CHW),
 /// black where `has_surface` is false. With `ratio_input` (the network's 66-channel input,
 /// planar CHW), the diffuse channels correct [`ratio_base`] (a network with base "ratio"),
-/// each correction soft-thresholded by `shrink` where I_1 is not black.
+/// each correction soft-thresholded by `shrink`, then scaled by [`gate_weight`] with `gate`,
+/// where I_1 is not black. (Where the gate is closed the GPU pass takes ratio mode's own
+/// arithmetic, [`reference_ratio`]; this reference's ratio base from the input tensor equals it
+/// up to the tensor's storage precision.)
 pub fn reference_network(
     net_out: &[f32],
     ratio_input: Option<&[f32]>,
-    shrink: f32,
+    (shrink, gate): (f32, f32),
     npix: usize,
     has_surface: &[bool],
 ) -> Vec<[f32; 3]> {
@@ -76,15 +82,43 @@ pub fn reference_network(
             }
             let base = ratio_input.map_or([0.0; 3], |x| ratio_base(x, npix, p));
             let covered = ratio_input.is_some_and(|x| (0..3).any(|k| x[k * npix + p] != 0.0));
-            let t = if covered { shrink } else { 0.0 };
+            let (t, w) = match ratio_input {
+                Some(x) if covered => (shrink, gate_weight(x, npix, p, gate)),
+                _ => (0.0, 1.0),
+            };
             let c = |k: usize| {
                 let (d, v) = (net_out[k * npix + p], net_out[(k + 3) * npix + p]);
-                let o = base[k] + soft_threshold(d, t) + soft_threshold(v, t);
+                let o = base[k] + w * (soft_threshold(d, t) + soft_threshold(v, t));
                 super::features::untonemap(o)
             };
             [c(0), c(1), c(2)]
         })
         .collect()
+}
+
+/// f at pixel `p` from the network input (planar CHW): max over RGB of
+/// E_add / (E_src − E_rem + E_add), the new light's share of the pixel's light, the denominator
+/// floored as [`ratio_base`] floors E_src; 0 where no lamp reaches the pixel (`model.py`'s
+/// `new_light_share`, `output.glsl`'s).
+pub fn new_light_share(x: &[f32], npix: usize, p: usize) -> f32 {
+    use super::features::untonemap;
+    let ch = |c: usize| untonemap(x[c * npix + p]);
+    let floor = E_FLOOR / std::f32::consts::PI;
+    (0..3)
+        .map(|k| {
+            let (es, ea, er) = (ch(51 + k), ch(54 + k), ch(57 + k));
+            ea / (es - er + ea).max(floor)
+        })
+        .fold(0.0, f32::max)
+}
+
+/// The scale of a covered pixel's corrections under `gate` G: min(1, f / G); 1 when G is 0.
+pub fn gate_weight(x: &[f32], npix: usize, p: usize, gate: f32) -> f32 {
+    if gate > 0.0 {
+        (new_light_share(x, npix, p) / gate).min(1.0)
+    } else {
+        1.0
+    }
 }
 
 /// sign(c)·max(|c| − τ, 0): a network's correction under `shrink` (`model.py`).

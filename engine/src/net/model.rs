@@ -30,6 +30,12 @@ pub struct NetConfig {
     /// correction c becomes sign(c)·max(|c| − τ, 0) in tonemapped space. 0: none.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub shrink: f32,
+    /// Gate G on the corrections (base ratio only; `model.py`): on covered pixels a correction
+    /// is scaled by min(1, f / G), f the new light's share of the pixel's light
+    /// ([`crate::frame::output::new_light_share`]), so that where no lamp reaches the image is
+    /// ratio's, exactly. 0: none.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub gate: f32,
 }
 
 fn is_zero(x: &f32) -> bool {
@@ -66,6 +72,7 @@ impl NetConfig {
             out_channels: 6,
             base: NetBase::None,
             shrink: 0.0,
+            gate: 0.0,
         }
     }
 }
@@ -126,16 +133,15 @@ impl SafetensorsParams {
                 "metadata \"relit.net\": width, levels, in_channels and out_channels must be > 0",
             ));
         }
-        if !(cfg.shrink >= 0.0 && cfg.shrink.is_finite())
-            || (cfg.shrink > 0.0 && cfg.base != NetBase::Ratio)
-        {
-            return Err(Error::input(
-                path,
-                format!(
-                    "metadata \"relit.net\": shrink {} must be finite, >= 0, and 0 unless base is \"ratio\"",
-                    cfg.shrink
-                ),
-            ));
+        for (name, v) in [("shrink", cfg.shrink), ("gate", cfg.gate)] {
+            if !(v >= 0.0 && v.is_finite()) || (v > 0.0 && cfg.base != NetBase::Ratio) {
+                return Err(Error::input(
+                    path,
+                    format!(
+                        "metadata \"relit.net\": {name} {v} must be finite, >= 0, and 0 unless base is \"ratio\""
+                    ),
+                ));
+            }
         }
         Ok((
             SafetensorsParams {
