@@ -43,23 +43,26 @@ const uint MODE_RATIO_FILLED = 3u;  // ratio where I_1 is not black, the network
 
 #include "tonemap.glsl"
 
-// tm(I_1 / E_src · (E_add + E_src − E_rem)) from the input tensor: channels 0–2, 51–59
-// (pack4 groups 0, 12, 13, 14); E_src/π floored at E_FLOOR / π as ratio mode floors E at E_FLOOR.
-vec3 ratio_base(uint p, uint npix) {
-    vec4 g0 = vec4(x[p]), g12 = vec4(x[12u * npix + p]);
-    vec4 g13 = vec4(x[13u * npix + p]), g14 = vec4(x[14u * npix + p]);
-    vec3 i1 = untm(g0.xyz);
-    vec3 es = untm(vec3(g12.w, g13.x, g13.y));
-    vec3 ea = untm(vec3(g13.z, g13.w, g14.x));
-    vec3 er = untm(g14.yzw);
-    return tm(i1 / max(es, vec3(E_FLOOR / 3.14159265358979)) * (ea + es - er));
+// E_src, E_add, E_rem (/π, untonemapped) from the input tensor: channels 51–59 (pack4 groups
+// 12–14), as the ratio base and the gate read them.
+struct InputIrr { vec3 es; vec3 ea; vec3 er; };
+InputIrr input_irr(uint p, uint npix) {
+    vec4 g12 = vec4(x[12u * npix + p]), g13 = vec4(x[13u * npix + p]), g14 = vec4(x[14u * npix + p]);
+    return InputIrr(untm(vec3(g12.w, g13.x, g13.y)), untm(vec3(g13.z, g13.w, g14.x)), untm(g14.yzw));
 }
 
-// f: the new light's share of the pixel's light, from the same channels.
-float new_light_share(uint p, uint npix) {
-    vec4 g12 = vec4(x[12u * npix + p]), g13 = vec4(x[13u * npix + p]), g14 = vec4(x[14u * npix + p]);
-    vec3 es = untm(vec3(g12.w, g13.x, g13.y)), ea = untm(vec3(g13.z, g13.w, g14.x));
-    vec3 f = ea / max(es - untm(g14.yzw) + ea, vec3(E_FLOOR / 3.14159265358979));
+// E_src/π floored at E_FLOOR / π, as ratio mode floors E at E_FLOOR.
+const float ES_FLOOR = E_FLOOR / 3.14159265358979;
+
+// tm(I_1 / E_src · (E_add + E_src − E_rem)) from the input tensor (I_1: channels 0–2).
+vec3 ratio_base(uint p, InputIrr e) {
+    vec3 i1 = untm(vec4(x[p]).xyz);
+    return tm(i1 / max(e.es, vec3(ES_FLOOR)) * (e.ea + e.es - e.er));
+}
+
+// f: the new light's share of the pixel's light, E_add / (E_src − E_rem + E_add), max over RGB.
+float new_light_share(InputIrr e) {
+    vec3 f = e.ea / max(e.es - e.er + e.ea, vec3(ES_FLOOR));
     return max(f.r, max(f.g, f.b));
 }
 
@@ -78,11 +81,12 @@ vec3 network_image(uint p, uint npix) {
     vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
     vec3 od = a.xyz, ov = vec3(a.w, b.x, b.y);
     if (pc.base == 1u) {
+        InputIrr e = input_irr(p, npix);
         bool covered = any(notEqual(vec4(x[p]).xyz, vec3(0.0)));
         float t = covered ? pc.shrink : 0.0;
-        float w = covered && pc.gate > 0.0 ? min(new_light_share(p, npix) / pc.gate, 1.0) : 1.0;
+        float w = covered && pc.gate > 0.0 ? min(new_light_share(e) / pc.gate, 1.0) : 1.0;
         if (w == 0.0) return ratio_image(p, npix);
-        od = w * soft_threshold(od, t) + ratio_base(p, npix);
+        od = w * soft_threshold(od, t) + ratio_base(p, e);
         ov = w * soft_threshold(ov, t);
     }
     return untm(max(od + ov, vec3(0.0)));

@@ -85,14 +85,20 @@ def covered(x):
 def ratio_base(x):
     """tm of eq. 5's ratio image, I_1 / E_src · (E_add + E_src − E_rem), from the input tensor
     (N×66×H×W); zero where no view covers the pixel (I_1 = 0)."""
-    i1, es, ea, er = (untm(x[:, c]) for c in (I1, E_SRC, E_ADD, E_REM))
-    return tm(i1 / es.clamp(min=ES_FLOOR) * (ea + es - er))
+    es, ea, er = input_irradiance(x)
+    return tm(untm(x[:, I1]) / es.clamp(min=ES_FLOOR) * (ea + es - er))
+
+
+def input_irradiance(x):
+    """E_src, E_add, E_rem (/π, untonemapped) from the input tensor, as ratio_base and the gate
+    read them."""
+    return (untm(x[:, c]) for c in (E_SRC, E_ADD, E_REM))
 
 
 def new_light_share(x):
     """N×1×H×W: f = max over RGB of E_add / (E_src − E_rem + E_add) at each pixel, from the
     input tensor (the denominator floored at ES_FLOOR): 0 where no lamp reaches the pixel."""
-    es, ea, er = (untm(x[:, c]) for c in (E_SRC, E_ADD, E_REM))
+    es, ea, er = input_irradiance(x)
     return (ea / (es - er + ea).clamp(min=ES_FLOOR)).amax(1, keepdim=True)
 
 

@@ -101,16 +101,23 @@ pub fn reference_network(
 /// floored as [`ratio_base`] floors E_src; 0 where no lamp reaches the pixel (`model.py`'s
 /// `new_light_share`, `output.glsl`'s).
 pub fn new_light_share(x: &[f32], npix: usize, p: usize) -> f32 {
-    use super::features::untonemap;
-    let ch = |c: usize| untonemap(x[c * npix + p]);
-    let floor = E_FLOOR / std::f32::consts::PI;
     (0..3)
         .map(|k| {
-            let (es, ea, er) = (ch(51 + k), ch(54 + k), ch(57 + k));
-            ea / (es - er + ea).max(floor)
+            let (es, ea, er) = input_irradiance(x, npix, p, k);
+            ea / (es - er + ea).max(ES_FLOOR)
         })
         .fold(0.0, f32::max)
 }
+
+/// E_src, E_add, E_rem (/π, untonemapped) of colour channel `k` at pixel `p` from the network
+/// input (channels 51–59), as the ratio base and the gate read them.
+fn input_irradiance(x: &[f32], npix: usize, p: usize, k: usize) -> (f32, f32, f32) {
+    let ch = |c: usize| super::features::untonemap(x[c * npix + p]);
+    (ch(51 + k), ch(54 + k), ch(57 + k))
+}
+
+/// E_src/π's floor in the input tensor's terms: ratio mode floors E_src at E_FLOOR.
+const ES_FLOOR: f32 = E_FLOOR / std::f32::consts::PI;
 
 /// The scale of a covered pixel's corrections under `gate` G: min(1, f / G); 1 when G is 0.
 pub fn gate_weight(x: &[f32], npix: usize, p: usize, gate: f32) -> f32 {
@@ -131,11 +138,9 @@ pub fn soft_threshold(c: f32, tau: f32) -> f32 {
 /// `model.py`'s `ratio_base` and `output.glsl`'s.
 pub fn ratio_base(x: &[f32], npix: usize, p: usize) -> [f32; 3] {
     use super::features::{tonemap, untonemap};
-    let ch = |c: usize| untonemap(x[c * npix + p]);
-    let floor = E_FLOOR / std::f32::consts::PI;
     [0, 1, 2].map(|k| {
-        let (i1, es, ea, er) = (ch(k), ch(51 + k), ch(54 + k), ch(57 + k));
-        tonemap(i1 / es.max(floor) * (ea + es - er))
+        let (es, ea, er) = input_irradiance(x, npix, p, k);
+        tonemap(untonemap(x[k * npix + p]) / es.max(ES_FLOOR) * (ea + es - er))
     })
 }
 
