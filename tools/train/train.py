@@ -415,7 +415,8 @@ def main():
             sys.exit(f"{ckpt}: trained with {c['terms']}, not {terms} "
                      "(--vgg, --multiview, --adv, torchrun processes)")
         if M.full_config(c["config"]) != net.config:
-            sys.exit(f"{ckpt}: network {c['config']} differs from {net.config} (--width, --*-blocks)")
+            sys.exit(f"{ckpt}: network {c['config']} differs from {net.config} "
+                     "(--width, --*-blocks, --base, --gate)")
         net.load_state_dict(c["model"])
         opt.load_state_dict(c["optimizer"])
         if disc is not None:
