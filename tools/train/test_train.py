@@ -6,6 +6,7 @@ over), resumes bit for bit, refuses to overwrite a run, and exports weights the 
 RELIT names the relit binary (default: target/debug/relit, what `cargo test` builds).
 """
 import json
+import math
 import os
 import signal
 import subprocess
@@ -105,6 +106,36 @@ class TrainerTest(unittest.TestCase):
         r = train(self.data, run, "--steps", "4", "--base", "ratio", "--resume")
         self.assertNotEqual(r.returncode, 0)     # resumed without the term it was trained with
         self.assertIn("correction_l1", r.stderr)
+
+    def test_the_margin_term_is_the_covered_db_below_ratio(self):
+        sys.path.insert(0, HERE)
+        import torch
+        import model as M
+        import train as T
+        net = M.RelightNet(width=8, trunk_blocks=1, level_blocks=1, tail_blocks=1, base="ratio")
+        x = torch.rand(1, net.config["in_channels"], 32, 32) * 0.5 + 0.25
+        x[:, M.I1, :16] = 0                     # the top half is a hole
+        ratio = M.ratio_base(x)
+        t = ratio + 0.1                         # the truth: the ratio image off by 0.1 everywhere
+        self.assertAlmostEqual(T.margin_loss(net(x), t, x).item(), 0.0, places=5)
+        with torch.no_grad():
+            net.out_conv.bias[:3].fill_(0.05)   # halfway to the truth: 6.02 dB better than ratio
+        m = T.margin_loss(net(x), t, x, floor=0.0)
+        self.assertAlmostEqual(m.item(), -10 * math.log10(4.0), places=3)
+        out = net(x)
+        out[:, :, :16] += 10                    # holes do not count
+        self.assertAlmostEqual(T.margin_loss(out, t, x, floor=0.0).item(), m.item(), places=5)
+        out[:, :3, 16:] += 0.2                  # past the truth by 0.15: 3.52 dB worse than ratio
+        self.assertAlmostEqual(T.margin_loss(out, t, x, floor=0.0).item(),
+                               20 * math.log10(1.5), places=3)
+        run = self.run_dir("margin")
+        r = train(self.data, run, "--steps", "2", "--base", "ratio", "--margin", "0.05")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertTrue(all("margin" in row for row in log(run) if "loss" in row))
+        r = train(self.data, self.run_dir("margin_none"), "--steps", "1", "--base", "none",
+                  "--margin", "0.05")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("--margin needs --base ratio", r.stderr)
 
     def test_the_gate_leaves_ratio_where_no_lamp_reaches_and_passes_the_lamps_light(self):
         sys.path.insert(0, HERE)

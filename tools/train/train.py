@@ -42,6 +42,8 @@ import perceptual as P  # noqa: E402
 import samples as S  # noqa: E402
 
 tonemap = M.tm
+# 50 dB: below it a crop's error is noise in the truth, not something worth a large gradient.
+MARGIN_MSE_FLOOR = 1e-5
 
 
 def load_split(folder):
@@ -93,6 +95,23 @@ def correction_l1(out, x):
     covered = M.covered(x)
     c = torch.cat([out[:, :3] - M.ratio_base(x), out[:, 3:6]], 1)
     return (c.abs() * covered).sum() / (covered.sum() * c.shape[1]).clamp(min=1)
+
+
+def margin_loss(out, t, x, floor=MARGIN_MSE_FLOOR):
+    """dB by which the network's image falls below the ratio image on the covered pixels of this
+    crop: 10·log10(MSE(ours) / MSE(ratio)), the evaluation's per-view margin with its sign turned.
+    Its gradient is that of the squared error divided by the crop's own error, so a crop the ratio
+    image already renders at 45 dB weighs as much as one at 25 dB: small corrections on clean
+    views, which the L1 terms barely see, cost here what they cost in the evaluation. 0 when no
+    pixel is covered; `floor` keeps a perfect crop's weight finite."""
+    covered = M.covered(x).expand_as(t)
+    if not covered.any():
+        return out.sum() * 0.0
+    mse = lambda img: ((img.clamp(min=0) - t) ** 2)[covered].mean() + floor
+    ours = mse(out[:, :3] + out[:, 3:6])
+    with torch.no_grad():
+        ratio = mse(M.ratio_base(x))
+    return 10.0 * torch.log10(ours / ratio)
 
 
 def covered_psnr(img, t, x):
@@ -235,6 +254,9 @@ def parse_args():
                     help="torch device: cpu or cuda (under torchrun, each process takes its own GPU)")
     ap.add_argument("--correction-l1", type=float, default=0.0, metavar="λ",
                     help="base ratio: λ · mean |correction| on covered pixels (0: off)")
+    ap.add_argument("--margin", type=float, default=0.0, metavar="λ",
+                    help="base ratio: λ · dB by which the image falls below the ratio image on "
+                         "the crop's covered pixels (the evaluation's per-view margin; 0: off)")
     ap.add_argument("--gate", type=float, default=0.0, metavar="G",
                     help="base ratio: scale corrections by min(1, new light's share / G) on "
                          "covered pixels, so that where no lamp reaches the image is ratio's (0: off)")
@@ -354,6 +376,10 @@ def step_loss(a, net, disc, vgg, train, nbr, warps, i, lighting, rng, row):
         c = correction_l1(out, x)
         row["correction_l1"] = c.item()
         loss = loss + a.correction_l1 * c
+    if a.margin > 0:
+        m = margin_loss(out, t, x)
+        row["margin"] = m.item()
+        loss = loss + a.margin * m
     if both:
         if (i, nbr[i]) not in warps:
             warps[(i, nbr[i])] = MV.warp(s, train[nbr[i]])
@@ -374,6 +400,8 @@ def main():
         sys.exit("--resume continues this run, --init-from starts one: pass one of them")
     if a.correction_l1 and a.base != "ratio":
         sys.exit("--correction-l1 needs --base ratio (a correction is relative to the ratio image)")
+    if a.margin and a.base != "ratio":
+        sys.exit("--margin needs --base ratio (it measures the image against the ratio image)")
     if a.gate and a.base != "ratio":
         sys.exit("--gate needs --base ratio (it scales the corrections to the ratio image)")
     if a.threads:
@@ -406,6 +434,8 @@ def main():
     terms = {"vgg": a.vgg, "multiview": a.multiview, "adv": a.adv, "processes": dd.world}
     if a.correction_l1:
         terms["correction_l1"] = a.correction_l1   # absent before the term existed
+    if a.margin:
+        terms["margin"] = a.margin
     step = 0
     if a.resume:
         if not os.path.exists(ckpt):
