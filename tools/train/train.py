@@ -104,24 +104,26 @@ def margin_loss(out, t, x, floor=MARGIN_MSE_FLOOR):
     image already renders at 45 dB weighs as much as one at 25 dB: small corrections on clean
     views, which the L1 terms barely see, cost here what they cost in the evaluation. 0 when no
     pixel is covered; `floor` keeps a perfect crop's weight finite."""
+    ours = covered_mse(out[:, :3] + out[:, 3:6], t, x)
+    if ours is None:
+        return out.sum() * 0.0
+    return 10.0 * torch.log10((ours + floor) / (covered_mse(M.ratio_base(x), t, x) + floor))
+
+
+def covered_mse(img, t, x):
+    """Mean squared error of a tonemapped image (negatives clamped) on the pixels an input view
+    covers (I_1 not black), as evaluate.py scores them; None when no pixel is covered."""
     covered = M.covered(x).expand_as(t)
     if not covered.any():
-        return out.sum() * 0.0
-    mse = lambda img: ((img.clamp(min=0) - t) ** 2)[covered].mean() + floor
-    ours = mse(out[:, :3] + out[:, 3:6])
-    with torch.no_grad():
-        ratio = mse(M.ratio_base(x))
-    return 10.0 * torch.log10(ours / ratio)
+        return None
+    return ((img.clamp(min=0) - t) ** 2)[covered].mean()
 
 
 def covered_psnr(img, t, x):
     """log-PSNR of a tonemapped image on the pixels an input view covers (I_1 not black), as
     evaluate.py scores them; None when no pixel is covered."""
-    covered = M.covered(x).expand_as(t)
-    if not covered.any():
-        return None
-    mse = ((img.clamp(min=0) - t) ** 2)[covered].mean().item()
-    return 10 * np.log10(1.0 / max(mse, 1e-12))
+    mse = covered_mse(img, t, x)
+    return None if mse is None else 10 * np.log10(1.0 / max(mse.item(), 1e-12))
 
 
 def validate(net, val, seed, device, vgg, lambda_vgg):
