@@ -22,6 +22,9 @@ struct Tiny {
     /// Two added lights: "a", a small disk 0.8 m in front of the novel camera facing it, and
     /// "b" near the ceiling.
     lights: Vec<Light>,
+    /// A declared original light: a 0.8 m square on the surface the novel camera sees at its
+    /// pixel (8, 8), facing it.
+    original: Light,
 }
 
 /// Smooth, positive, position-dependent fields stand in for the baked maps (the passes only
@@ -100,12 +103,39 @@ fn tiny() -> Tiny {
         disk("a", eye + fwd * 0.8 + fwd.cross(Vec3::Y) * 0.1, -fwd),
         disk("b", Vec3::new(0.5, 2.3, 0.5), Vec3::NEG_Y),
     ];
+    let original = on_surface(&mesh, &novel, (8, 8));
     Tiny {
         mesh,
         cams,
         host,
         novel,
         lights,
+        original,
+    }
+}
+
+/// A declared original light (a 0.8 m square, 5 mm off the surface) where `cam`'s pixel `px`
+/// meets the proxy, facing the camera.
+fn on_surface(mesh: &Mesh, cam: &Camera, px: (u32, u32)) -> Light {
+    let d = cam.ray_dir(glam::Vec2::new(px.0 as f32 + 0.5, px.1 as f32 + 0.5));
+    let h = relit_engine::cpu::closest_hit(mesh, cam.center(), d, 0.0, 1e4).unwrap();
+    let mut n = mesh.face_normal(h.tri as usize);
+    if n.dot(d) > 0.0 {
+        n = -n;
+    }
+    let u = n.any_orthonormal_vector() * 0.8;
+    let v = n.cross(u);
+    let centre = cam.center() + d * h.t + n * 0.005;
+    Light {
+        name: "panel".into(),
+        shape: LightShape::Quad {
+            corner: centre - 0.5 * (u + v),
+            edge_u: u,
+            edge_v: v,
+        },
+        radiance: [9.0, 8.0, 6.0],
+        original: true,
+        estimated: false,
     }
 }
 
@@ -150,21 +180,17 @@ fn ref_inputs<'a>(
         alpha_dim: lighting.alpha_dim,
         exclude: r.exclude,
         emitters: &r.scene.emitters,
+        originals: &r.scene.originals,
         live: None,
     }
 }
 
-/// A renderer without a network over exact maps, two added lights, one of them on.
+/// A renderer without a network over exact maps, two added lights, one of them on, and the
+/// declared original light.
 fn ulr_renderer(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>, t: &Tiny) -> (Renderer, Lighting) {
-    let scene = FrameScene::from_parts(
-        gpu,
-        &t.mesh,
-        &t.cams,
-        &t.host,
-        &t.lights,
-        MapFormat::Rgba32f,
-    )
-    .unwrap();
+    let lights = [t.lights.clone(), vec![t.original.clone()]].concat();
+    let scene = FrameScene::from_parts(gpu, &t.mesh, &t.cams, &t.host, &lights, MapFormat::Rgba32f)
+        .unwrap();
     let lighting = Lighting {
         intensities: vec![0.7, 0.0],
         alpha_dim: 0.4,
@@ -280,21 +306,56 @@ fn frame_passes_match_cpu_references() {
             }
         })
         .collect();
-    let emitters = r.scene.emitters.clone();
+    let (added, originals) = (r.scene.emitters.clone(), r.scene.originals.clone());
+    let drawn = output::Drawn {
+        added: &added,
+        intensities: &lighting.intensities,
+        originals: &originals,
+        alpha_dim: lighting.alpha_dim,
+    };
     let draw = |base: &[[f32; 3]]| {
         output::reference_emitters(
             &t.novel,
             &g.pos_depth,
-            &emitters,
-            &lighting.intensities,
+            (&comp, &irr[npix..2 * npix]),
+            &drawn,
             base,
         )
     };
     let ulr_want = draw(&ulr);
-    let drawn = (0..npix).filter(|&p| ulr_want[p] != ulr[p]).count();
+    let w = t.novel.width;
+    let ray = |p: usize| {
+        let xy = glam::Vec2::new((p as u32 % w) as f32 + 0.5, (p as u32 / w) as f32 + 0.5);
+        t.novel.ray_dir(xy).normalize()
+    };
+    let eye = t.novel.center();
+    let lit = |p| output::nearest_emitter(&added, drawn.intensities, eye, ray(p), 1e30);
+    let (mut by_a, mut by_panel) = (0, 0);
+    for p in (0..npix).filter(|&p| ulr_want[p] != ulr[p]) {
+        if lit(p).is_some() {
+            by_a += 1
+        } else {
+            by_panel += 1
+        }
+    }
     assert!(
-        (10..npix / 4).contains(&drawn),
-        "light a covers {drawn} pixels"
+        (10..npix / 4).contains(&by_a),
+        "light a covers {by_a} pixels"
+    );
+    // The panel shows 0.6 of its glow in I_1 (α_dim 0.4) plus its reflection of light a.
+    assert!(
+        (10..npix / 4).contains(&by_panel),
+        "the panel covers {by_panel} pixels"
+    );
+    let p = (8 * t.novel.width + 8) as usize;
+    let ea = Vec3::from_slice(&irr[npix + p][..3]);
+    let albedo = relit_engine::constants::EMITTER_ALBEDO;
+    let i1 = Vec3::from_slice(&comp[p][..3]);
+    assert!(i1 != Vec3::ZERO, "a view sees the panel's centre");
+    let want = 0.6 * i1 + albedo / std::f32::consts::PI * ea;
+    assert!(
+        (Vec3::from(ulr_want[p]) - want).abs().max_element() < 1e-4,
+        "panel pixel {p}"
     );
     for p in 0..npix {
         let want = ulr_want[p];

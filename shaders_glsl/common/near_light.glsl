@@ -4,12 +4,8 @@
 // `lights[]` (the declared lights) first.
 #ifndef RELIT_NEAR_LIGHT_GLSL
 #define RELIT_NEAR_LIGHT_GLSL
+#include "constants.glsl"
 #include "lights.glsl"
-
-// A declared light sits on or just off the proxy (ceiling, wall): a point within this distance
-// of its plane, inside its outline, is on the light.
-const float LIGHT_SKIN = 0.03;
-const float LEAK_PX = 2.0;
 
 // Whether view pixel q (global index into views of W×H pixels) shows or bleeds from a light.
 bool near_light(int q, uint W, uint H, uint nlights) {

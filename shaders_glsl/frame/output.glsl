@@ -6,7 +6,8 @@
 // exposure (a linear scale) then the sRGB transfer function, 8 bits (screen, PNG).
 // Ratio-filled mode shows ratio's image where an input view sees the surface (I_1 not black) and
 // the network's in the holes, which ratio leaves black.
-// In every mode a lit added light in front of the surface is drawn with its radiance.
+// In every mode a lit added light in front of the surface is drawn with its radiance, and a
+// declared original light on the surface with its dimmed glow (emitters.glsl).
 // A network with base "ratio" (model.py) corrects the ratio image: its diffuse output is added
 // to tm(R), R formed from the network's own input channels (I_1, E_src/π, E_add/π, E_rem/π,
 // untonemapped), as model.py's ratio_base does, so the trainer and the engine compute the same.
@@ -35,6 +36,8 @@ layout(push_constant, scalar) uniform Push {
     uint base;       // NetBase: 0 none, 1 ratio
     float shrink;    // NetConfig::shrink (0: none)
     float gate;      // NetConfig::gate (0: none)
+    uint norig;      // declared original lights (emitters.glsl)
+    float alpha_dim; // §4.1.4: 0 keeps the original lighting, 1 removes it
 } pc;
 
 const uint MODE_NETWORK = 0u;
@@ -118,6 +121,7 @@ void main() {
     vec3 ray = normalize(cam_ray_dir(pc.cam, vec2(xy) + 0.5));
     float t = xp.w > 0.0 ? distance(xp.xyz, eye) : 1e30;
     vec3 le;
+    if (xp.w > 0.0 && original_light(xp.xyz, ray, pc.norig, pc.alpha_dim, vec3(comp[p].rgb), irr[npix + p].rgb, le)) c = le;
     if (nearest_emitter(eye, ray, pc.nlights, t, le)) c = le;
     hdr[p] = vec4(c, 1.0);
     vec3 d = c * pc.exposure;

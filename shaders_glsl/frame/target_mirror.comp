@@ -4,7 +4,8 @@
 // viewing direction onto y is best aligned with the reflected ray (among all views that see y):
 //   I_i / E_src_i · (E_add_i + E_src_i − E_rem_i),  E_rem_i = α_dim · E_src_i,
 // read at y's pixel in view i (nearest texel, as the depth test). E_src is floored at E_FLOOR
-// (W/m², constants.table) in the ratio. A lit added light met before y is seen in the mirror: its radiance.
+// (W/m², constants.table) in the ratio. A lit added light met before y is seen in the mirror: its radiance;
+// a declared original light at y shows its dimmed glow (emitters.glsl).
 // A live light (frame/live.glsl) adds its E_add evaluated at y itself.
 // Output vec4: rgb, w = reflected distance |y − x| (0: no hit, no view).
 #extension GL_EXT_ray_query : require
@@ -31,6 +32,7 @@ layout(push_constant) uniform Push {
     uint nviews; uint nlights; float alpha_dim;
     uint exclude;    // a view left out of the frame (0xFFFFFFFF: none)
     uint nlive; uint live_mask;
+    uint norig;      // declared original lights (emitters.glsl)
 } pc;
 
 void main() {
@@ -53,14 +55,11 @@ void main() {
     if (!hit) return;
     vec3 y = o + r * t;
     int q = best_view(y, r, pc.exclude, pc.nviews, pc.view_w, pc.view_h);
-    if (q < 0) return;
     uint npv = pc.view_w * pc.view_h;
-    uint j = uint(q) / npv, qp = uint(q) % npv;
+    uint j = uint(max(q, 0)) / npv, qp = uint(max(q, 0)) % npv;
     ivec2 xy = ivec2(qp % pc.view_w, qp / pc.view_w);
-    vec3 col = texelFetch(tex_img, ivec3(xy, j), 0).rgb;
-    vec3 es = texelFetch(tex_esrc, ivec3(xy, j), 0).rgb;
     vec3 ea = vec3(0.0);
-    for (uint l = 0u; l < pc.nlights; ++l) {
+    for (uint l = 0u; q >= 0 && l < pc.nlights; ++l) {
         if (intensity[l] != 0.0 && !is_live(l, pc.live_mask))
             ea += intensity[l] * texelFetch(tex_eadd, ivec3(xy, l * pc.nviews + j), 0).rgb;
     }
@@ -69,6 +68,10 @@ void main() {
         float s = intensity[lives[i].layer];
         if (s != 0.0) ea += s * live_eadd(i, y, live_normal(tri, -r), tri, p);
     }
+    vec3 col = q >= 0 ? texelFetch(tex_img, ivec3(xy, j), 0).rgb : vec3(0.0);
+    if (original_light(y, r, pc.norig, pc.alpha_dim, col, ea, le)) { mirror[p] = vec4(le, distance(y, x)); return; }
+    if (q < 0) return;
+    vec3 es = texelFetch(tex_esrc, ivec3(xy, j), 0).rgb;
     vec3 modified = ea + es - pc.alpha_dim * es;
     mirror[p] = vec4(col / max(es, vec3(E_FLOOR)) * modified, distance(y, x));
 }

@@ -14,13 +14,7 @@ use crate::error::Result;
 use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Graph, Pipeline, RayScene};
 use crate::scene::{Light, Mesh};
 
-/// Metres: a proxy hit this close to a declared light's plane, on a ray that crosses the
-/// light, is the light (`LIGHT_SKIN` in the shader); shadow rays end this far in front of it.
-pub const LIGHT_SKIN: f32 = 0.03;
-
-/// Pixels: a view pixel this close to a declared light carries some of its emission (the
-/// pixel filter spreads it), so it is no radiance sample of the surface (`LEAK_PX`).
-pub const LEAK_PX: f32 = 2.0;
+pub use crate::constants::{LEAK_PX, LIGHT_SKIN};
 
 /// Whether view pixel `q` (global index) shows, or bleeds from, a declared light.
 pub(super) fn near_light(d: &ViewData, lights: &[GpuLight], q: usize) -> bool {

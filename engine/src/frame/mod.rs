@@ -132,6 +132,8 @@ pub struct RefInputs<'a> {
     pub exclude: Option<u32>,
     /// The added lights' shapes (drawn where seen, in the mirror too).
     pub emitters: &'a [GpuLight],
+    /// The declared original lights (drawn where seen, dimmed).
+    pub originals: &'a [GpuLight],
     /// Live lights, when some are (frame/live.rs).
     pub live: Option<LiveRef<'a>>,
 }
@@ -209,12 +211,24 @@ pub struct FrameScene {
     pub unbaked: Vec<String>,
     pub emitters: Vec<GpuLight>,
     emitter_buf: Buffer,
+    /// The declared original lights (drawn where seen, dimmed by α_dim).
+    pub originals: Vec<GpuLight>,
+    original_buf: Buffer,
     pub sampler: Sampler,
 }
 
+/// `lights` in a storage buffer (one zero light when there is none: Vulkan has no empty
+/// buffers, and the shaders read none then).
+fn light_buffer(gpu: &Arc<Gpu>, name: &str, lights: &[GpuLight]) -> Result<Buffer> {
+    let zero = [bytemuck::Zeroable::zeroed()];
+    let data = if lights.is_empty() { &zero[..] } else { lights };
+    Buffer::from_slice(gpu, name, vk::BufferUsageFlags::STORAGE_BUFFER, data)
+}
+
 impl FrameScene {
-    /// From host data (tests, tools): `mesh` is the proxy the maps were baked on. The views'
-    /// per-pixel host copies stay (the CPU references read them).
+    /// From host data (tests, tools): `mesh` is the proxy the maps were baked on; `lights` the
+    /// added lights (in E_add layer order) and the declared original ones. The views' per-pixel
+    /// host copies stay (the CPU references read them).
     pub fn from_parts(
         gpu: &Arc<Gpu>,
         mesh: &crate::scene::Mesh,
@@ -249,12 +263,11 @@ impl FrameScene {
             GpuViews::build_streamed(gpu, &rs, cameras, |j| Ok(rgba(j).collect()))?
         };
         let maps = maps(host)?;
-        let emitters: Vec<GpuLight> = lights.iter().map(GpuLight::new).collect();
-        // Vulkan has no empty buffers: one zero light when there is none (never read).
-        let mut stored = emitters.clone();
-        if stored.is_empty() {
-            stored.push(bytemuck::Zeroable::zeroed());
-        }
+        let of = |original: bool| -> Vec<GpuLight> {
+            let kind = lights.iter().filter(|l| l.original == original);
+            kind.map(GpuLight::new).collect()
+        };
+        let (emitters, originals) = (of(false), of(true));
         Ok(FrameScene {
             mesh: rs,
             geom: mesh.clone(),
@@ -262,15 +275,16 @@ impl FrameScene {
             data,
             views,
             maps,
-            lights: lights.iter().map(|l| l.name.clone()).collect(),
+            lights: lights
+                .iter()
+                .filter(|l| !l.original)
+                .map(|l| l.name.clone())
+                .collect(),
             unbaked: Vec::new(),
+            emitter_buf: light_buffer(gpu, "frame emitters", &emitters)?,
             emitters,
-            emitter_buf: Buffer::from_slice(
-                gpu,
-                "frame emitters",
-                vk::BufferUsageFlags::STORAGE_BUFFER,
-                &stored,
-            )?,
+            original_buf: light_buffer(gpu, "frame original lights", &originals)?,
+            originals,
             sampler: Sampler::linear(gpu)?,
         })
     }
@@ -284,12 +298,6 @@ impl FrameScene {
     ) -> Result<FrameScene> {
         let mesh = bakerun::bake_mesh(scene, params);
         let cams: Vec<Camera> = scene.views.iter().map(|v| v.camera.clone()).collect();
-        let added: Vec<Light> = scene
-            .lights
-            .iter()
-            .filter(|l| !l.original)
-            .cloned()
-            .collect();
         // The images, the views from them, and only then the lighting maps, each type freed
         // once on the device: at the paper's scale (300 views at 512×384) these are GBs.
         let mut host = HostMaps::default();
@@ -301,7 +309,7 @@ impl FrameScene {
             Ok(())
         };
         let maps = |h: HostMaps| ViewMaps::upload_cached(gpu, scene, params, h, &mut load, format);
-        let mut fs = FrameScene::build(gpu, &mesh, &cams, host, &added, false, maps)?;
+        let mut fs = FrameScene::build(gpu, &mesh, &cams, host, &scene.lights, false, maps)?;
         fs.unbaked = unbaked;
         let cache = BakeCache::of(scene, params)?;
         fs.albedo = Some(cache.read_albedo(mesh.positions.len())?);
@@ -324,12 +332,8 @@ impl FrameScene {
                 )))
             }
         }
-        self.emitter_buf = Buffer::from_slice(
-            &self.mesh.positions.gpu,
-            "frame emitters",
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            &self.emitters,
-        )?;
+        self.emitter_buf =
+            light_buffer(&self.mesh.positions.gpu, "frame emitters", &self.emitters)?;
         Ok(())
     }
 }
@@ -770,7 +774,7 @@ impl Renderer {
         let eye = [c.x, c.y, c.z, 1.0];
         let (width, height) = (cam.width, cam.height);
         let (view_w, view_h, nviews) = (s.views.width, s.views.height, s.views.count);
-        let nlights = s.lights.len() as u32;
+        let (nlights, norig) = (s.lights.len() as u32, s.originals.len() as u32);
         let (nlive, live_mask) = (self.live.count(), self.live.mask());
         let (alpha_dim, nactive) = (lighting.alpha_dim, self.active.len() as u32);
         Pushes {
@@ -807,6 +811,7 @@ impl Renderer {
                 exclude: self.exclude.unwrap_or(u32::MAX),
                 nlive,
                 live_mask,
+                norig,
             },
             features: features::Push { eye, width, height },
             output: output::Push {
@@ -827,6 +832,8 @@ impl Renderer {
                 },
                 shrink: self.net.as_ref().map_or(0.0, |n| n.config.shrink),
                 gate: self.net.as_ref().map_or(0.0, |n| n.config.gate),
+                norig,
+                alpha_dim,
             },
         }
     }
@@ -935,6 +942,7 @@ impl Renderer {
             .set("Hdr", Bind::Buffer(&b.hdr))
             .set("Ldr", Bind::Buffer(&b.ldr))
             .set("Emitters", Bind::Buffer(&s.emitter_buf))
+            .set("Originals", Bind::Buffer(&s.original_buf))
             .set("LiveVerts", Bind::Buffer(&s.mesh.positions))
             .set("LiveIndices", Bind::Buffer(&s.mesh.indices))
             .set("LiveCaches", Bind::Buffer(live_caches))

@@ -1,13 +1,14 @@
 //! The frame's output (§5.2): `shaders_glsl/frame/output.glsl`. Network mode sums the diffuse
 //! and view-dependent outputs in tonemapped space and inverts the tonemap; ULR mode shows the
 //! `I_1` composite; ratio mode relights it with eq. 5's pseudo-albedo rule. Linear HDR for EXR, exposure + sRGB in 8 bits for screens and PNG.
-//! In every mode, lit added lights in front of the surface are drawn (`frame/emitters.glsl`).
+//! In every mode, lit added lights in front of the surface are drawn, and declared original
+//! lights on it, dimmed by α_dim (`frame/emitters.glsl`).
 
 use crate::gpu::shaders;
 use glam::Vec3;
 
 use crate::bake::GpuLight;
-use crate::constants::E_FLOOR;
+use crate::constants::{EMITTER_ALBEDO, E_FLOOR, LIGHT_SKIN};
 use crate::scene::{Camera, GpuCamera};
 
 #[repr(C)]
@@ -25,6 +26,9 @@ pub struct Push {
     pub shrink: f32,
     /// [`crate::net::NetConfig::gate`].
     pub gate: f32,
+    /// Declared original lights (drawn where seen, dimmed).
+    pub norig: u32,
+    pub alpha_dim: f32,
 }
 
 /// Push as its shaders' push block declares it (tests/gpu.rs checks).
@@ -44,7 +48,9 @@ pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
         nlights,
         base,
         shrink,
-        gate
+        gate,
+        norig,
+        alpha_dim
     ]
 );
 
@@ -202,29 +208,64 @@ pub fn nearest_emitter(
     found
 }
 
-/// CPU reference of the emitters drawn over a mode's output `base` (linear RGB per pixel;
-/// `gpos`: the G-buffer's world position + depth).
+/// CPU mirror of `original_light`: what the proxy point `y`, seen along unit `d`, shows when it
+/// lies on a declared original light's emitting side: (1 − α_dim) · I + `EMITTER_ALBEDO` ·
+/// E_add / π, the ratio rule with the light's albedo fixed (I, `seen`: the photos' radiance at
+/// `y`, its glow; black where none sees it, then the declared radiance; `ea`: E_add at `y`).
+pub fn original_light(
+    originals: &[GpuLight],
+    alpha_dim: f32,
+    y: Vec3,
+    d: Vec3,
+    seen: Vec3,
+    ea: Vec3,
+) -> Option<Vec3> {
+    let l = originals
+        .iter()
+        .find(|l| d.dot(l.normal()) < 0.0 && l.near(y, LIGHT_SKIN, 0.0))?;
+    let glow = if seen == Vec3::ZERO {
+        Vec3::from_slice(&l.radiance[..3])
+    } else {
+        seen
+    };
+    Some((1.0 - alpha_dim) * glow + EMITTER_ALBEDO / std::f32::consts::PI * ea)
+}
+
+/// The lights a frame draws where they are seen (`frame/emitters.glsl`): the added lights at
+/// this frame's intensities, the declared original lights dimmed by α_dim.
+#[derive(Clone, Copy)]
+pub struct Drawn<'a> {
+    pub added: &'a [GpuLight],
+    pub intensities: &'a [f32],
+    pub originals: &'a [GpuLight],
+    pub alpha_dim: f32,
+}
+
+/// CPU reference of the lights drawn over a mode's output `base` (linear RGB per pixel;
+/// `gpos`: the G-buffer's world position + depth; `comp`: the composites (`I_1` first);
+/// `eadd`: the frame's E_add per pixel).
 pub fn reference_emitters(
     cam: &Camera,
     gpos: &[[f32; 4]],
-    emitters: &[GpuLight],
-    intensities: &[f32],
+    (comp, eadd): (&[[f32; 4]], &[[f32; 4]]),
+    drawn: &Drawn,
     base: &[[f32; 3]],
 ) -> Vec<[f32; 3]> {
     let eye = cam.center();
+    let v3 = |a: &[f32; 4]| Vec3::from_slice(&a[..3]);
     (0..base.len())
         .map(|p| {
             let (x, y) = ((p as u32 % cam.width) as f32, (p as u32 / cam.width) as f32);
             let d = cam.ray_dir(glam::Vec2::new(x + 0.5, y + 0.5)).normalize();
-            let g = gpos[p];
-            let t = if g[3] > 0.0 {
-                Vec3::new(g[0], g[1], g[2]).distance(eye)
-            } else {
-                1e30
-            };
-            match nearest_emitter(emitters, intensities, eye, d, t) {
+            let (g, pos) = (gpos[p], v3(&gpos[p]));
+            let t = if g[3] > 0.0 { pos.distance(eye) } else { 1e30 };
+            let (o, a) = (drawn.originals, drawn.alpha_dim);
+            let seen = (g[3] > 0.0)
+                .then(|| original_light(o, a, pos, d, v3(&comp[p]), v3(&eadd[p])))
+                .flatten();
+            match nearest_emitter(drawn.added, drawn.intensities, eye, d, t) {
                 Some((le, _)) => le.into(),
-                None => base[p],
+                None => seen.map_or(base[p], Into::into),
             }
         })
         .collect()

@@ -20,19 +20,23 @@ pub struct Push {
     pub exclude: u32,
     pub nlive: u32,
     pub live_mask: u32,
+    pub norig: u32,
 }
 
 /// Push as its shaders' push block declares it (tests/gpu.rs checks).
 pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
     Push,
     [shaders::FRAME_TARGET_MIRROR],
-    [eye, width, height, view_w, view_h, nviews, nlights, alpha_dim, exclude, nlive, live_mask]
+    [
+        eye, width, height, view_w, view_h, nviews, nlights, alpha_dim, exclude, nlive, live_mask,
+        norig
+    ]
 );
 
 pub const SHADER: crate::gpu::Shader = shaders::FRAME_TARGET_MIRROR;
 
 /// CPU reference: vec4 per pixel (rgb, reflected distance; a lit added light met first gives
-/// its radiance).
+/// its radiance, a declared original light at the hit its dimmed glow).
 pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
     let npix = (r.width * r.height) as usize;
     let nviews = r.data.cameras.len();
@@ -57,18 +61,13 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
                 return [0.0; 4];
             };
             let y = o + rd * h.t;
-            let Some(q) = r
-                .data
-                .best_view(y, rd, r.exclude.map_or(usize::MAX, |e| e as usize))
-            else {
-                return [0.0; 4];
-            };
-            let (j, qp) = (q / vpix, q % vpix);
-            let col = v3(r.maps.img[j][qp]);
-            let es = v3(r.maps.esrc[j][qp]);
+            let skip = r.exclude.map_or(usize::MAX, |e| e as usize);
+            let q = r.data.best_view(y, rd, skip);
+            let (j, qp) = q.map_or((0, 0), |q| (q / vpix, q % vpix));
             let mut ea = Vec3::ZERO;
             for (l, &s) in r.intensities.iter().enumerate() {
-                if s != 0.0 && !r.live.as_ref().is_some_and(|v| v.is_live(l)) {
+                let live = r.live.as_ref().is_some_and(|v| v.is_live(l));
+                if q.is_some() && s != 0.0 && !live {
                     ea += s * v3(r.maps.eadd[l * nviews + j][qp]);
                 }
             }
@@ -79,6 +78,15 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
                 }
                 ea += v.eadd(r.intensities, y, ny, h.tri as usize, p as u32);
             }
+            let col = q.map_or(Vec3::ZERO, |_| v3(r.maps.img[j][qp]));
+            let glow = super::output::original_light(r.originals, r.alpha_dim, y, rd, col, ea);
+            if let Some(le) = glow {
+                return [le.x, le.y, le.z, y.distance(x)];
+            }
+            if q.is_none() {
+                return [0.0; 4];
+            }
+            let es = v3(r.maps.esrc[j][qp]);
             let m =
                 col / es.max(Vec3::splat(crate::constants::E_FLOOR)) * (ea + es - r.alpha_dim * es);
             [m.x, m.y, m.z, y.distance(x)]
