@@ -126,6 +126,10 @@ fn dataset_builds_resumes_and_its_samples_mix_any_lighting_as_the_engine_does() 
             text.contains("target_total"),
             "{cam}: targets not compared:\n{text}"
         );
+        assert!(
+            text.contains("drawn original lights"),
+            "{cam}: drawn lights not compared:\n{text}"
+        );
     }
 }
 

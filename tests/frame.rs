@@ -349,7 +349,7 @@ fn frame_passes_match_cpu_references() {
     );
     let p = (8 * t.novel.width + 8) as usize;
     let ea = Vec3::from_slice(&irr[npix + p][..3]);
-    let albedo = relit_engine::constants::EMITTER_ALBEDO;
+    let albedo = output::EMITTER_ALBEDO; // no albedo mesh here
     let i1 = Vec3::from_slice(&comp[p][..3]);
     assert!(i1 != Vec3::ZERO, "a view sees the panel's centre");
     let want = 0.6 * i1 + albedo / std::f32::consts::PI * ea;
@@ -949,4 +949,52 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
     eprintln!("E_add at the centre: baked {b:.3}, moved {a:.3}");
     assert!(a > 3.0 * b && a > 1.0, "baked {b}, moved {a}");
     common::assert_no_validation_errors(&gpu);
+}
+
+/// A declared original light's albedo is the albedo mesh's mean over the vertices on it (the
+/// bake fills them from the surroundings), 0.8 grey without a mesh or a vertex on it.
+#[test]
+fn an_original_lights_albedo_is_the_albedo_mesh_on_it() {
+    let light = Light {
+        name: "panel".into(),
+        shape: LightShape::Quad {
+            corner: Vec3::new(0.0, 2.59, 0.0),
+            edge_u: Vec3::new(1.0, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, -1.0),
+        },
+        radiance: [5.0; 3],
+        original: true,
+        estimated: false,
+    };
+    // Two vertices on the light (1 cm under its plane), one beside it, one 10 cm below it.
+    let mesh = Mesh {
+        positions: vec![
+            [0.2, 2.58, -0.2],
+            [0.8, 2.58, -0.7],
+            [1.5, 2.58, -0.5],
+            [0.5, 2.49, -0.5],
+        ],
+        colors: None,
+        triangles: vec![[0, 1, 2], [0, 1, 3]],
+    };
+    let albedo = [
+        [0.6, 0.1, 0.5, 0.0],
+        [0.4, 0.1, 0.7, 0.0],
+        [0.9, 0.9, 0.9, 1.0],
+        [0.9, 0.9, 0.9, 1.0],
+    ];
+    let o = output::GpuOriginal::new(&light, Some((&mesh, &albedo)));
+    let want = [0.5, 0.1, 0.6];
+    for k in 0..3 {
+        assert!((o.albedo[k] - want[k]).abs() < 1e-6, "{:?}", o.albedo);
+    }
+    let grey = output::GpuOriginal::new(&light, None).albedo;
+    assert_eq!(grey[..3], [output::EMITTER_ALBEDO; 3]);
+    let far = Mesh {
+        positions: mesh.positions[2..].to_vec(),
+        colors: None,
+        triangles: vec![],
+    };
+    let none_on = output::GpuOriginal::new(&light, Some((&far, &albedo[2..])));
+    assert_eq!(none_on.albedo[..3], [output::EMITTER_ALBEDO; 3]);
 }

@@ -4,7 +4,8 @@
 //   11: their radiance where one is met before any surface.
 // - Declared original lights, at binding 29: on the proxy surface they sit on, their glow as
 //   the photos show it, dimmed by α_dim (§4.1.4), plus their own surface's reflection of the
-//   added lights. The ratio rule would scale the glow as if it were reflected light.
+//   added lights (its albedo from the bake's albedo mesh around it). The ratio rule would scale
+//   the glow as if it were reflected light.
 #ifndef RELIT_EMITTERS_GLSL
 #define RELIT_EMITTERS_GLSL
 #extension GL_EXT_scalar_block_layout : require
@@ -13,7 +14,9 @@
 
 layout(set = 0, binding = 11) readonly buffer Intensity { float intensity[]; };
 layout(set = 0, binding = 19, scalar) readonly buffer Emitters { Light emitters[]; };
-layout(set = 0, binding = 29, scalar) readonly buffer Originals { Light originals[]; };
+// A declared original light and the diffuse albedo of its own surface (frame::output::GpuOriginal).
+struct Original { Light light; vec4 albedo; };
+layout(set = 0, binding = 29, scalar) readonly buffer Originals { Original originals[]; };
 
 // Whether the ray (o, unit d) meets a lit added light closer than t; then t becomes its
 // distance and radiance its emitted radiance times its intensity.
@@ -34,18 +37,18 @@ bool nearest_emitter(vec3 o, vec3 d, uint nlights, inout float t, out vec3 radia
 
 // Whether the proxy point y, seen along unit d, lies on the emitting side of a declared original
 // light (within LIGHT_SKIN of its plane, inside its outline); then radiance is what it shows:
-//   (1 − α_dim) · I + EMITTER_ALBEDO · E_add / π,
-// the ratio rule with the light's own albedo taken as EMITTER_ALBEDO rather than I / E_src (I is
-// its glow, not reflected light). I: the photos' radiance at y (`seen`); where no view sees y
-// (black), the light's declared radiance. ea: E_add at y.
+//   (1 − α_dim) · I + ρ · E_add / π,
+// the ratio rule with the light's albedo ρ taken from its surroundings (the albedo mesh) rather
+// than I / E_src: I is its glow, not reflected light. I: the photos' radiance at y (`seen`);
+// where no view sees y (black), the light's declared radiance. ea: E_add at y.
 bool original_light(vec3 y, vec3 d, uint norig, float alpha_dim, vec3 seen, vec3 ea,
                     out vec3 radiance) {
     radiance = vec3(0.0);
     for (uint l = 0u; l < norig; ++l) {
-        if (dot(d, light_normal(originals[l])) >= 0.0) continue;
-        if (!light_near(originals[l], y, LIGHT_SKIN, 0.0)) continue;
-        vec3 glow = all(equal(seen, vec3(0.0))) ? originals[l].radiance.rgb : seen;
-        radiance = (1.0 - alpha_dim) * glow + (EMITTER_ALBEDO / 3.14159265358979) * ea;
+        Light o = originals[l].light;
+        if (dot(d, light_normal(o)) >= 0.0 || !light_near(o, y, LIGHT_SKIN, 0.0)) continue;
+        vec3 glow = all(equal(seen, vec3(0.0))) ? o.radiance.rgb : seen;
+        radiance = (1.0 - alpha_dim) * glow + originals[l].albedo.rgb / 3.14159265358979 * ea;
         return true;
     }
     return false;

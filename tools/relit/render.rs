@@ -645,9 +645,14 @@ pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> 
             "relit.lighting".to_string(),
             serde_json::json!({"alpha_dim": light.alpha_dim, "intensities": frame::added_lights(&scene).iter().zip(&light.intensities).collect::<Vec<_>>()}).to_string(),
         );
-        r.render(&cam, &light, Mode::Ulr, 1.0, None)?;
+        r.render(&cam, &light, Mode::Ratio, 1.0, None)?;
         let input = r.buffers_ref().unwrap().input.download_chw()?;
-        let mut t = vec![("input".to_string(), input, vec![66, h, w])];
+        let hdr = r.hdr()?;
+        let ratio = (0..3).flat_map(|c| hdr.iter().map(move |p| p[c])).collect();
+        let mut t = vec![
+            ("input".to_string(), input, vec![66, h, w]),
+            ("ratio_image".to_string(), ratio, vec![3, h, w]),
+        ];
         let gt = ground_truth(&scene, &cam_name, &light)?;
         let has = gt.is_some();
         if let Some((d, tot)) = gt {
@@ -677,7 +682,10 @@ pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> 
 /// lighting: every lighting-dependent channel is linear in α_dim and the added lights'
 /// intensities, except where a mirror ray meets a lit lamp.
 const PARTS_DOC: &str = "static: the 66 channels under the original lighting (alpha 0, no added \
-light); e_src: E_src (linear, W/m2); m_orig: M_tgt linear under the original lighting; for each \
+light); e_src: E_src (linear, W/m2); m_orig: M_tgt linear under the original lighting; \
+light_glow, light_albedo: the glow of the declared original light each pixel shows and the \
+albedo of its surface (0 off them; the frame draws (1-alpha) light_glow + light_albedo E_add/pi \
+there in every mode); for each \
 added light L (relit.lights order) at intensity 1 with the original removed (alpha 1): \
 e_add.L (E_add linear), m_add.L (M_tgt linear), dist.L (channel 65). Channels 48-50 = tm(M), \
 M = (1-alpha) m_orig + sum_L i_L m_add.L, except where some lit light has dist.L != static[65]: \
@@ -700,10 +708,13 @@ fn parts_tensors(
     let mut light = Lighting::original(scene);
     r.render(cam, &light, Mode::Ulr, 1.0, None)?;
     let (input, irr, mirror) = frame_planes(r)?;
+    let (glow, albedo) = glow_planes(r, cam)?;
     let mut t: Vec<Tensor> = vec![
         ("static".into(), input, vec![66, h, w]),
         ("e_src".into(), irr[0].clone(), vec![3, h, w]),
         ("m_orig".into(), mirror, vec![3, h, w]),
+        ("light_glow".into(), glow, vec![3, h, w]),
+        ("light_albedo".into(), albedo, vec![3, h, w]),
     ];
     let mut has_gt = true;
     let mut add_targets = |t: &mut Vec<Tensor>, cond: &str, l: &Lighting| -> Result<()> {
@@ -785,6 +796,23 @@ fn frame_planes(r: &Renderer) -> Result<FramePlanes> {
         ],
         planar(&mirror[..n]),
     ))
+}
+
+/// The glow of the declared original lights the last frame shows and their albedo, each planar
+/// 3×H×W, zero off them (`frame::output::original_glow_image`).
+fn glow_planes(r: &Renderer, cam: &Camera) -> Result<(Vec<f32>, Vec<f32>)> {
+    let b = r.buffers_ref().context("no frame rendered")?;
+    let n = (b.width * b.height) as usize;
+    let g = b.gbuf.download()?;
+    let comp = b.composites()?;
+    let img = frame::output::original_glow_image(cam, &g.pos_depth, &comp[..n], &r.scene.originals);
+    let glow = (0..3)
+        .flat_map(|c| img.iter().map(move |p| p.0[c]))
+        .collect();
+    let albedo = (0..3)
+        .flat_map(|c| img.iter().map(move |p| p.1[c]))
+        .collect();
+    Ok((glow, albedo))
 }
 
 /// target_diffuse, target_total and target_glossy (total − diffuse), names ending in `suffix`.

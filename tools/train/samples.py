@@ -7,7 +7,8 @@ added light alone at intensity 1), so the trainer can draw random intensities an
 
   python3 tools/train/samples.py --check PARTS.safetensors DUMP.safetensors
       assembles PARTS under DUMP's lighting (its relit.lighting metadata) and fails unless the
-      input equals DUMP's within 1e-4 (and the targets, when both have them).
+      input equals DUMP's within 1e-4 (and the targets, when both have them), and what the frame
+      draws on the declared original lights equals DUMP's ratio_image there.
 """
 import argparse
 import json
@@ -92,6 +93,19 @@ class Sample:
         surface = np.any(t["static"] != 0.0, axis=0)
         return np.where(surface[None], x, 0.0).astype(np.float32)
 
+    def drawn_lights(self, alpha, intensities):
+        """(where, value): the pixels that show a declared original light (1×H×W bool) and what
+        the frame draws there in every mode under a lighting (linear 3×H×W; emitters.glsl):
+        (1 − α) · light_glow + light_albedo · E_add / π. None for samples written before
+        `relit dump --parts` wrote light_glow."""
+        t = self.t
+        if "light_glow" not in t:
+            return None
+        glow = t["light_glow"]
+        e_add = sum(i * t[f"e_add.{n}"] for n, i in zip(self.lights, intensities))
+        value = (1.0 - alpha) * glow + t["light_albedo"] * (e_add + np.zeros_like(glow)) / np.pi
+        return np.any(glow != 0.0, axis=0, keepdims=True), value
+
     def targets(self, alpha, intensities):
         """(diffuse, total) linear targets under a lighting."""
         t = self.t
@@ -115,6 +129,14 @@ def check(parts_path, dump_path, tol=1e-4):
     print(f"input: max |assembled - dump| = {diff.max():.3g} at channel {worst[0]}, "
           f"pixel ({worst[2]}, {worst[1]})")
     ok = diff.max() <= tol
+    drawn = s.drawn_lights(lit["alpha_dim"], intens)
+    if drawn is not None and "ratio_image" in dump:
+        on, value = drawn
+        n = int(on.sum())
+        e = np.abs(np.where(on, value - dump["ratio_image"], 0.0)).max() if n else 0.0
+        e /= max(np.abs(dump["ratio_image"]).max(), 1e-6)
+        print(f"drawn original lights: {n} pixels, max relative difference {e:.3g}")
+        ok &= e <= tol
     if s.has_targets() and "target_diffuse" in dump:
         d, tot = s.targets(lit["alpha_dim"], intens)
         for name, a in (("target_diffuse", d), ("target_total", tot)):

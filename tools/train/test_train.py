@@ -137,6 +137,34 @@ class TrainerTest(unittest.TestCase):
         self.assertNotEqual(r.returncode, 0)
         self.assertIn("--margin needs --base ratio", r.stderr)
 
+    def test_original_lights_are_drawn_as_the_engine_draws_them_and_get_no_gradient(self):
+        sys.path.insert(0, HERE)
+        import glob
+        import torch
+        import model as M
+        import samples as S
+        import train as T
+        # The dataset's samples carry the lights' glow (relit dump --parts).
+        sample = S.Sample(sorted(glob.glob(os.path.join(self.data, "train", "*")))[0])
+        on, value = sample.drawn_lights(0.5, [1.0] * len(sample.lights))
+        self.assertEqual(on.shape[1:], value.shape[1:])
+        x = torch.rand(1, 66, 8, 8) * 0.5 + 0.25
+        raw = torch.rand(1, 6, 8, 8, requires_grad=True)
+        lights = torch.zeros(1, 4, 8, 8)
+        lights[:, 0, :3] = 1.0                  # the top three rows show a light
+        lights[:, 1:, :3] = 0.3
+        out = T.draw_lights(raw, lights)
+        self.assertTrue(torch.equal(out[:, :3, :3], torch.full((1, 3, 3, 8), 0.3)))
+        self.assertTrue(torch.equal(out[:, 3:, :3], torch.zeros(1, 3, 3, 8)))
+        self.assertTrue(torch.equal(out[:, :, 3:], raw[:, :, 3:]))
+        out.sum().backward()
+        self.assertEqual(raw.grad[:, :, :3].abs().max().item(), 0.0)
+        self.assertEqual(raw.grad[:, :, 3:].min().item(), 1.0)
+        ratio = T.ratio_image(x, lights)
+        self.assertTrue(torch.equal(ratio[:, :, 3:], M.ratio_base(x)[:, :, 3:]))
+        self.assertTrue(torch.equal(ratio[:, :, :3], torch.full((1, 3, 3, 8), 0.3)))
+        self.assertIs(T.draw_lights(raw, None), raw)    # samples written before light_glow
+
     def test_the_gate_leaves_ratio_where_no_lamp_reaches_and_passes_the_lamps_light(self):
         sys.path.insert(0, HERE)
         import torch

@@ -68,15 +68,39 @@ def random_lighting(sample, rng):
 
 
 def batch(sample, alpha, intens, crop, rng, device="cpu"):
-    """(input, tm(diffuse), tm(total)) as 1×C×h×w tensors, a random crop (or the whole view)."""
+    """(input, tm(diffuse), tm(total), lights) as 1×C×h×w tensors, a random crop (or the whole
+    view). lights: 1×4×h×w, where a declared original light shows (channel 0: 1) and tm of what
+    the frame draws there (1–3), as draw_lights reads it; None for samples without light_glow."""
     x = sample.input(alpha, intens)
     d, t = sample.targets(alpha, intens)
+    drawn = sample.drawn_lights(alpha, intens)
     h, w = x.shape[-2:]
     ch, cw = (h, w) if crop is None else (min(crop, h), min(crop, w))
     y0, x0 = rng.randrange(h - ch + 1), rng.randrange(w - cw + 1)
     s = (slice(None), slice(y0, y0 + ch), slice(x0, x0 + cw))
     to = lambda a: torch.from_numpy(np.ascontiguousarray(a[s], dtype=np.float32))[None].to(device)
-    return to(x), tonemap(to(d)), tonemap(to(t))
+    lights = None if drawn is None else torch.cat([to(drawn[0]), tonemap(to(drawn[1]))], 1)
+    return to(x), tonemap(to(d)), tonemap(to(t)), lights
+
+
+def draw_lights(img, lights):
+    """A tonemapped image (N×3, or the network's N×6 output) with the declared original lights
+    drawn as the engine's output pass draws them over every mode: their value as the diffuse
+    image, no view-dependent part. The network's output there never reaches the screen, so it
+    gets no gradient there."""
+    if lights is None:
+        return img
+    on = lights[:, :1] > 0
+    od = torch.where(on, lights[:, 1:4], img[:, :3])
+    if img.shape[1] == 3:
+        return od
+    return torch.cat([od, torch.where(on, torch.zeros_like(img[:, 3:6]), img[:, 3:6])], 1)
+
+
+def ratio_image(x, lights=None):
+    """The engine's ratio mode as the trainer sees it: eq. 5's ratio image (tonemapped) with the
+    declared original lights drawn."""
+    return draw_lights(M.ratio_base(x), lights)
 
 
 def losses(out, d, t, lambda_vdep=10.0, vgg=None, lambda_vgg=0.0):
@@ -88,16 +112,16 @@ def losses(out, d, t, lambda_vdep=10.0, vgg=None, lambda_vgg=0.0):
     return loss
 
 
-def correction_l1(out, x):
+def correction_l1(out, x, lights=None):
     """Mean |correction| on covered pixels of a base-"ratio" network: what it adds to the ratio
     image (diffuse) and its view-dependent output. As a penalty it keeps a correction only where
     the data terms pay for it, so that surfaces the ratio image already renders stay as they are."""
     covered = M.covered(x)
-    c = torch.cat([out[:, :3] - M.ratio_base(x), out[:, 3:6]], 1)
+    c = torch.cat([out[:, :3] - ratio_image(x, lights), out[:, 3:6]], 1)
     return (c.abs() * covered).sum() / (covered.sum() * c.shape[1]).clamp(min=1)
 
 
-def margin_loss(out, t, x, floor=MARGIN_MSE_FLOOR):
+def margin_loss(out, t, x, lights=None, floor=MARGIN_MSE_FLOOR):
     """dB by which the network's image falls below the ratio image on the covered pixels of this
     crop: 10·log10(MSE(ours) / MSE(ratio)), the evaluation's per-view margin with its sign turned.
     Its gradient is that of the squared error divided by the crop's own error, so a crop the ratio
@@ -107,7 +131,7 @@ def margin_loss(out, t, x, floor=MARGIN_MSE_FLOOR):
     ours = covered_mse(out[:, :3] + out[:, 3:6], t, x)
     if ours is None:
         return out.sum() * 0.0
-    return 10.0 * torch.log10((ours + floor) / (covered_mse(M.ratio_base(x), t, x) + floor))
+    return 10.0 * torch.log10((ours + floor) / (covered_mse(ratio_image(x, lights), t, x) + floor))
 
 
 def covered_mse(img, t, x):
@@ -136,11 +160,12 @@ def validate(net, val, seed, device, vgg, lambda_vgg):
     with torch.no_grad():
         for s in val:
             for _ in range(3):
-                x, d, t = batch(s, *random_lighting(s, rng), None, rng, device)
-                out = net(x)
+                x, d, t, lights = batch(s, *random_lighting(s, rng), None, rng, device)
+                out = draw_lights(net(x), lights)
                 total += losses(out, d, t, vgg=vgg, lambda_vgg=lambda_vgg).item()
                 n += 1
-                p, r = covered_psnr(out[:, :3] + out[:, 3:6], t, x), covered_psnr(M.ratio_base(x), t, x)
+                p = covered_psnr(out[:, :3] + out[:, 3:6], t, x)
+                r = covered_psnr(ratio_image(x, lights), t, x)
                 if p is not None:
                     ours.append(p)
                     ratio.append(r)
@@ -365,21 +390,22 @@ def step_loss(a, net, disc, vgg, train, nbr, warps, i, lighting, rng, row):
     """The generator's loss of one step (eq. 8–12 as switched on) and the discriminator's input."""
     s = train[i]
     both = a.multiview > 0 and nbr[i] is not None
-    x, d, t = batch(s, *lighting, None if both else a.crop, rng, a.device)
+    x, d, t, lights = batch(s, *lighting, None if both else a.crop, rng, a.device)
     if both:
         # The neighbour goes through the network in the same batch (one forward, one backward).
-        xb = batch(train[nbr[i]], *lighting, None, rng, a.device)[0]
+        xb, _, _, lights_b = batch(train[nbr[i]], *lighting, None, rng, a.device)
         outs = net(torch.cat([x, xb]))
-        out = outs[:1]
+        out = draw_lights(outs[:1], lights)
+        outs = torch.cat([out, draw_lights(outs[1:], lights_b)])
     else:
-        out = net(x)
+        out = draw_lights(net(x), lights)
     loss = losses(out, d, t, vgg=vgg, lambda_vgg=a.vgg)
     if a.correction_l1 > 0:
-        c = correction_l1(out, x)
+        c = correction_l1(out, x, lights)
         row["correction_l1"] = c.item()
         loss = loss + a.correction_l1 * c
     if a.margin > 0:
-        m = margin_loss(out, t, x)
+        m = margin_loss(out, t, x, lights)
         row["margin"] = m.item()
         loss = loss + a.margin * m
     if both:

@@ -133,7 +133,7 @@ pub struct RefInputs<'a> {
     /// The added lights' shapes (drawn where seen, in the mirror too).
     pub emitters: &'a [GpuLight],
     /// The declared original lights (drawn where seen, dimmed).
-    pub originals: &'a [GpuLight],
+    pub originals: &'a [output::GpuOriginal],
     /// Live lights, when some are (frame/live.rs).
     pub live: Option<LiveRef<'a>>,
 }
@@ -212,17 +212,29 @@ pub struct FrameScene {
     pub emitters: Vec<GpuLight>,
     emitter_buf: Buffer,
     /// The declared original lights (drawn where seen, dimmed by α_dim).
-    pub originals: Vec<GpuLight>,
+    pub originals: Vec<output::GpuOriginal>,
     original_buf: Buffer,
     pub sampler: Sampler,
 }
 
-/// `lights` in a storage buffer (one zero light when there is none: Vulkan has no empty
+/// `items` in a storage buffer (one zeroed item when there is none: Vulkan has no empty
 /// buffers, and the shaders read none then).
-fn light_buffer(gpu: &Arc<Gpu>, name: &str, lights: &[GpuLight]) -> Result<Buffer> {
-    let zero = [bytemuck::Zeroable::zeroed()];
-    let data = if lights.is_empty() { &zero[..] } else { lights };
+fn light_buffer<T: bytemuck::Pod>(gpu: &Arc<Gpu>, name: &str, items: &[T]) -> Result<Buffer> {
+    let zero = [T::zeroed()];
+    let data = if items.is_empty() { &zero[..] } else { items };
     Buffer::from_slice(gpu, name, vk::BufferUsageFlags::STORAGE_BUFFER, data)
+}
+
+/// The declared original lights of `lights`, each with its surface's albedo from the albedo
+/// mesh when there is one ([`output::GpuOriginal::new`]).
+fn original_lights(
+    lights: &[Light],
+    albedo: Option<(&crate::scene::Mesh, &[[f32; 4]])>,
+) -> Vec<output::GpuOriginal> {
+    let declared = lights.iter().filter(|l| l.original);
+    declared
+        .map(|l| output::GpuOriginal::new(l, albedo))
+        .collect()
 }
 
 impl FrameScene {
@@ -263,11 +275,9 @@ impl FrameScene {
             GpuViews::build_streamed(gpu, &rs, cameras, |j| Ok(rgba(j).collect()))?
         };
         let maps = maps(host)?;
-        let of = |original: bool| -> Vec<GpuLight> {
-            let kind = lights.iter().filter(|l| l.original == original);
-            kind.map(GpuLight::new).collect()
-        };
-        let (emitters, originals) = (of(false), of(true));
+        let added = lights.iter().filter(|l| !l.original);
+        let emitters: Vec<GpuLight> = added.map(GpuLight::new).collect();
+        let originals = original_lights(lights, None);
         Ok(FrameScene {
             mesh: rs,
             geom: mesh.clone(),
@@ -312,7 +322,10 @@ impl FrameScene {
         let mut fs = FrameScene::build(gpu, &mesh, &cams, host, &scene.lights, false, maps)?;
         fs.unbaked = unbaked;
         let cache = BakeCache::of(scene, params)?;
-        fs.albedo = Some(cache.read_albedo(mesh.positions.len())?);
+        let albedo = cache.read_albedo(mesh.positions.len())?;
+        fs.originals = original_lights(&scene.lights, Some((&mesh, &albedo)));
+        fs.original_buf = light_buffer(gpu, "frame original lights", &fs.originals)?;
+        fs.albedo = Some(albedo);
         Ok(fs)
     }
 

@@ -8,8 +8,8 @@ use crate::gpu::shaders;
 use glam::Vec3;
 
 use crate::bake::GpuLight;
-use crate::constants::{EMITTER_ALBEDO, E_FLOOR, LIGHT_SKIN};
-use crate::scene::{Camera, GpuCamera};
+use crate::constants::{E_FLOOR, LIGHT_SKIN};
+use crate::scene::{Camera, GpuCamera, Light, Mesh};
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -208,27 +208,112 @@ pub fn nearest_emitter(
     found
 }
 
+/// The albedo of a declared original light's surface where the albedo mesh has no vertex on it
+/// (tests, scenes without a bake): a diffuser is near white.
+pub const EMITTER_ALBEDO: f32 = 0.8;
+
+/// A declared original light as `frame/emitters.glsl` reads it: its shape and radiance, and
+/// the diffuse albedo of its own surface, which the frame relights once the light is dimmed.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuOriginal {
+    pub light: GpuLight,
+    pub albedo: [f32; 4],
+}
+
+impl GpuOriginal {
+    /// `light` with its surface's albedo taken from the albedo mesh (`albedo` per vertex of
+    /// `mesh`, from the bake): the mean over the vertices on the light. Photos show a light's
+    /// glow, not its surface, so the bake fills those vertices from their surroundings (the
+    /// ceiling or wall around it), and that is what the ground truth shows with the light off.
+    /// `EMITTER_ALBEDO` grey without an albedo mesh or a vertex on the light.
+    pub fn new(light: &Light, mesh: Option<(&Mesh, &[[f32; 4]])>) -> GpuOriginal {
+        let light = GpuLight::new(light);
+        let on = |(p, _): &(&[f32; 3], &[f32; 4])| light.near(Vec3::from(**p), LIGHT_SKIN, 0.0);
+        let (mut sum, mut n) = (Vec3::ZERO, 0.0);
+        if let Some((m, a)) = mesh {
+            for (_, a) in m.positions.iter().zip(a).filter(on) {
+                sum += Vec3::from_slice(&a[..3]);
+                n += 1.0;
+            }
+        }
+        let albedo = if n > 0.0 {
+            sum / n
+        } else {
+            Vec3::splat(EMITTER_ALBEDO)
+        };
+        GpuOriginal {
+            light,
+            albedo: albedo.extend(0.0).into(),
+        }
+    }
+}
+
+/// The glow of the declared original light that the proxy point `y`, seen along unit `d`, lies
+/// on (its emitting side, within `LIGHT_SKIN` of its plane, inside its outline), and that
+/// light: `seen` (the photos' radiance at `y`), or its declared radiance where `seen` is black
+/// (no view sees `y`).
+pub fn original_glow(
+    originals: &[GpuOriginal],
+    y: Vec3,
+    d: Vec3,
+    seen: Vec3,
+) -> Option<(Vec3, &GpuOriginal)> {
+    let o = originals
+        .iter()
+        .find(|o| d.dot(o.light.normal()) < 0.0 && o.light.near(y, LIGHT_SKIN, 0.0))?;
+    let glow = if seen == Vec3::ZERO {
+        Vec3::from_slice(&o.light.radiance[..3])
+    } else {
+        seen
+    };
+    Some((glow, o))
+}
+
 /// CPU mirror of `original_light`: what the proxy point `y`, seen along unit `d`, shows when it
-/// lies on a declared original light's emitting side: (1 − α_dim) · I + `EMITTER_ALBEDO` ·
-/// E_add / π, the ratio rule with the light's albedo fixed (I, `seen`: the photos' radiance at
-/// `y`, its glow; black where none sees it, then the declared radiance; `ea`: E_add at `y`).
+/// lies on a declared original light: (1 − α_dim) · glow + ρ · E_add / π, the ratio rule with
+/// the light's albedo ρ taken from its surroundings ([`original_glow`], [`GpuOriginal::new`];
+/// `ea`: E_add at `y`).
 pub fn original_light(
-    originals: &[GpuLight],
+    originals: &[GpuOriginal],
     alpha_dim: f32,
     y: Vec3,
     d: Vec3,
     seen: Vec3,
     ea: Vec3,
 ) -> Option<Vec3> {
-    let l = originals
-        .iter()
-        .find(|l| d.dot(l.normal()) < 0.0 && l.near(y, LIGHT_SKIN, 0.0))?;
-    let glow = if seen == Vec3::ZERO {
-        Vec3::from_slice(&l.radiance[..3])
-    } else {
-        seen
-    };
-    Some((1.0 - alpha_dim) * glow + EMITTER_ALBEDO / std::f32::consts::PI * ea)
+    let (glow, o) = original_glow(originals, y, d, seen)?;
+    let rho = Vec3::from_slice(&o.albedo[..3]);
+    Some((1.0 - alpha_dim) * glow + rho / std::f32::consts::PI * ea)
+}
+
+/// The unit camera ray through the centre of pixel `p` (row-major).
+pub fn pixel_ray(cam: &Camera, p: usize) -> Vec3 {
+    let (x, y) = ((p as u32 % cam.width) as f32, (p as u32 / cam.width) as f32);
+    cam.ray_dir(glam::Vec2::new(x + 0.5, y + 0.5)).normalize()
+}
+
+/// Per pixel of `cam`, the glow of the declared original light it shows and that light's
+/// albedo ([`original_glow`]; `gpos`: the G-buffer, `comp`: the composites, `I_1` first), zero
+/// off the lights: the frame draws (1 − α_dim) · glow + albedo · E_add / π there (`relit dump
+/// --parts` writes both for the trainer).
+pub fn original_glow_image(
+    cam: &Camera,
+    gpos: &[[f32; 4]],
+    comp: &[[f32; 4]],
+    originals: &[GpuOriginal],
+) -> Vec<([f32; 3], [f32; 3])> {
+    (0..(cam.width * cam.height) as usize)
+        .map(|p| {
+            let (g, c) = (gpos[p], comp[p]);
+            let (y, seen) = (Vec3::from_slice(&g[..3]), Vec3::from_slice(&c[..3]));
+            let on = (g[3] > 0.0).then(|| original_glow(originals, y, pixel_ray(cam, p), seen));
+            match on.flatten() {
+                Some((glow, o)) => (glow.into(), [o.albedo[0], o.albedo[1], o.albedo[2]]),
+                None => ([0.0; 3], [0.0; 3]),
+            }
+        })
+        .collect()
 }
 
 /// The lights a frame draws where they are seen (`frame/emitters.glsl`): the added lights at
@@ -237,7 +322,7 @@ pub fn original_light(
 pub struct Drawn<'a> {
     pub added: &'a [GpuLight],
     pub intensities: &'a [f32],
-    pub originals: &'a [GpuLight],
+    pub originals: &'a [GpuOriginal],
     pub alpha_dim: f32,
 }
 
@@ -255,8 +340,7 @@ pub fn reference_emitters(
     let v3 = |a: &[f32; 4]| Vec3::from_slice(&a[..3]);
     (0..base.len())
         .map(|p| {
-            let (x, y) = ((p as u32 % cam.width) as f32, (p as u32 / cam.width) as f32);
-            let d = cam.ray_dir(glam::Vec2::new(x + 0.5, y + 0.5)).normalize();
+            let d = pixel_ray(cam, p);
             let (g, pos) = (gpos[p], v3(&gpos[p]));
             let t = if g[3] > 0.0 { pos.distance(eye) } else { 1e30 };
             let (o, a) = (drawn.originals, drawn.alpha_dim);
