@@ -951,10 +951,11 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
     common::assert_no_validation_errors(&gpu);
 }
 
-/// A declared original light's albedo is the albedo mesh's mean over the vertices on it (the
-/// bake fills them from the surroundings), 0.8 grey without a mesh or a vertex on it.
+/// A declared original light's albedo is the albedo mesh's mean over the vertices around it
+/// (10–40 cm outside its outline, in its plane; each channel at most 1), 0.8 grey without a
+/// mesh or a vertex there.
 #[test]
-fn an_original_lights_albedo_is_the_albedo_mesh_on_it() {
+fn an_original_lights_albedo_is_the_albedo_mesh_around_it() {
     let light = Light {
         name: "panel".into(),
         shape: LightShape::Quad {
@@ -966,35 +967,36 @@ fn an_original_lights_albedo_is_the_albedo_mesh_on_it() {
         original: true,
         estimated: false,
     };
-    // Two vertices on the light (1 cm under its plane), one beside it, one 10 cm below it.
-    let mesh = Mesh {
-        positions: vec![
-            [0.2, 2.58, -0.2],
-            [0.8, 2.58, -0.7],
-            [1.5, 2.58, -0.5],
-            [0.5, 2.49, -0.5],
-        ],
-        colors: None,
-        triangles: vec![[0, 1, 2], [0, 1, 3]],
-    };
+    // On the light (glow in its albedo), 5 cm beside it (bleeding), 20 cm and 30 cm beside it
+    // (1 cm under its plane), 60 cm beside it, 10 cm below it.
+    let positions = vec![
+        [0.5, 2.58, -0.5],
+        [1.05, 2.58, -0.5],
+        [1.2, 2.58, -0.5],
+        [0.5, 2.58, 0.3],
+        [1.6, 2.58, -0.5],
+        [1.2, 2.49, -0.5],
+    ];
     let albedo = [
-        [0.6, 0.1, 0.5, 0.0],
-        [0.4, 0.1, 0.7, 0.0],
+        [1.4, 1.0, 1.9, 0.0],
+        [0.9, 0.6, 0.9, 1.0],
+        [0.6, 0.1, 1.3, 1.0],
+        [0.4, 0.1, 0.5, 1.0],
         [0.9, 0.9, 0.9, 1.0],
         [0.9, 0.9, 0.9, 1.0],
     ];
-    let o = output::GpuOriginal::new(&light, Some((&mesh, &albedo)));
-    let want = [0.5, 0.1, 0.6];
-    for k in 0..3 {
-        assert!((o.albedo[k] - want[k]).abs() < 1e-6, "{:?}", o.albedo);
-    }
-    let grey = output::GpuOriginal::new(&light, None).albedo;
-    assert_eq!(grey[..3], [output::EMITTER_ALBEDO; 3]);
-    let far = Mesh {
-        positions: mesh.positions[2..].to_vec(),
+    let mesh = |positions: Vec<[f32; 3]>| Mesh {
+        positions,
         colors: None,
         triangles: vec![],
     };
-    let none_on = output::GpuOriginal::new(&light, Some((&far, &albedo[2..])));
-    assert_eq!(none_on.albedo[..3], [output::EMITTER_ALBEDO; 3]);
+    let o = output::GpuOriginal::new(&light, Some((&mesh(positions.clone()), &albedo)));
+    let want = Vec3::new(0.5, 0.1, 0.75);
+    let got = Vec3::from_slice(&o.albedo[..3]);
+    assert!((got - want).abs().max_element() < 1e-6, "{:?}", o.albedo);
+    let grey = [output::EMITTER_ALBEDO; 3];
+    assert_eq!(output::GpuOriginal::new(&light, None).albedo[..3], grey);
+    let none_around = mesh(vec![positions[0], positions[1], positions[4]]);
+    let o = output::GpuOriginal::new(&light, Some((&none_around, &albedo[..3])));
+    assert_eq!(o.albedo[..3], grey);
 }

@@ -212,6 +212,11 @@ pub fn nearest_emitter(
 /// (tests, scenes without a bake): a diffuser is near white.
 pub const EMITTER_ALBEDO: f32 = 0.8;
 
+/// Metres outside a declared original light's outline between which the albedo mesh gives the
+/// light's surface its albedo ([`GpuOriginal::new`]): past the glow that bleeds into the
+/// vertices beside it, within the ceiling or wall it sits on.
+pub const RING: (f32, f32) = (0.1, 0.4);
+
 /// A declared original light as `frame/emitters.glsl` reads it: its shape and radiance, and
 /// the diffuse albedo of its own surface, which the frame relights once the light is dimmed.
 #[repr(C)]
@@ -223,17 +228,21 @@ pub struct GpuOriginal {
 
 impl GpuOriginal {
     /// `light` with its surface's albedo taken from the albedo mesh (`albedo` per vertex of
-    /// `mesh`, from the bake): the mean over the vertices on the light. Photos show a light's
-    /// glow, not its surface, so the bake fills those vertices from their surroundings (the
-    /// ceiling or wall around it), and that is what the ground truth shows with the light off.
-    /// `EMITTER_ALBEDO` grey without an albedo mesh or a vertex on the light.
+    /// `mesh`, from the bake): the mean over the vertices around the light, in its plane,
+    /// `RING` outside its outline, each channel at most 1. Photos show a light's glow, not its
+    /// surface, and the vertices on it and just beside it take some glow into their albedo; the
+    /// ground truth shows the ceiling or wall around it where the light is off. `EMITTER_ALBEDO`
+    /// grey without an albedo mesh or a vertex around the light.
     pub fn new(light: &Light, mesh: Option<(&Mesh, &[[f32; 4]])>) -> GpuOriginal {
         let light = GpuLight::new(light);
-        let on = |(p, _): &(&[f32; 3], &[f32; 4])| light.near(Vec3::from(**p), LIGHT_SKIN, 0.0);
+        let around = |p: &[f32; 3]| {
+            let p = Vec3::from(*p);
+            light.near(p, LIGHT_SKIN, RING.1) && !light.near(p, LIGHT_SKIN, RING.0)
+        };
         let (mut sum, mut n) = (Vec3::ZERO, 0.0);
         if let Some((m, a)) = mesh {
-            for (_, a) in m.positions.iter().zip(a).filter(on) {
-                sum += Vec3::from_slice(&a[..3]);
+            for (_, a) in m.positions.iter().zip(a).filter(|(p, _)| around(p)) {
+                sum += Vec3::from_slice(&a[..3]).clamp(Vec3::ZERO, Vec3::ONE);
                 n += 1.0;
             }
         }
