@@ -36,18 +36,22 @@ bool nearest_emitter(vec3 o, vec3 d, uint nlights, inout float t, out vec3 radia
 }
 
 // Whether the proxy point y, seen along unit d, lies on the emitting side of a declared original
-// light (within LIGHT_SKIN of its plane, inside its outline); then radiance is what it shows:
+// light (within LIGHT_SKIN of its plane, inside its outline grown by `margin` metres: the pixels
+// the photos' pixel filter spreads its glow into); then radiance is what it shows:
 //   (1 − α_dim) · I + ρ · E_add / π,
 // the ratio rule with the light's albedo ρ taken from its surroundings (the albedo mesh) rather
-// than I / E_src: I is its glow, not reflected light. I: the photos' radiance at y (`seen`);
-// where no view sees y (black), the light's declared radiance. ea: E_add at y.
+// than I / E_src: I holds glow, not only reflected light. I: the photos' radiance at y (`seen`);
+// where no view sees y (black), the light's declared radiance on the light itself, nothing drawn
+// beside it. ea: E_add at y.
 bool original_light(vec3 y, vec3 d, uint norig, float alpha_dim, vec3 seen, vec3 ea,
-                    out vec3 radiance) {
+                    float margin, out vec3 radiance) {
     radiance = vec3(0.0);
+    bool hole = all(equal(seen, vec3(0.0)));
     for (uint l = 0u; l < norig; ++l) {
         Light o = originals[l].light;
-        if (dot(d, light_normal(o)) >= 0.0 || !light_near(o, y, LIGHT_SKIN, 0.0)) continue;
-        vec3 glow = all(equal(seen, vec3(0.0))) ? o.radiance.rgb : seen;
+        if (dot(d, light_normal(o)) >= 0.0 || !light_near(o, y, LIGHT_SKIN + margin, margin)) continue;
+        if (hole && !light_near(o, y, LIGHT_SKIN, 0.0)) continue;
+        vec3 glow = hole ? o.radiance.rgb : seen;
         radiance = (1.0 - alpha_dim) * glow + originals[l].albedo.rgb / 3.14159265358979 * ea;
         return true;
     }

@@ -121,7 +121,9 @@ void main() {
     vec3 ray = normalize(cam_ray_dir(pc.cam, vec2(xy) + 0.5));
     float t = xp.w > 0.0 ? distance(xp.xyz, eye) : 1e30;
     vec3 le;
-    if (xp.w > 0.0 && original_light(xp.xyz, ray, pc.norig, pc.alpha_dim, vec3(comp[p].rgb), irr[npix + p].rgb, le)) c = le;
+    float leak = LEAK_PX * xp.w / pc.cam.intrinsics.x;  // metres the pixel filter spreads glow
+    if (xp.w > 0.0 && original_light(xp.xyz, ray, pc.norig, pc.alpha_dim, vec3(comp[p].rgb),
+                                     irr[npix + p].rgb, leak, le)) c = le;
     if (nearest_emitter(eye, ray, pc.nlights, t, le)) c = le;
     hdr[p] = vec4(c, 1.0);
     vec3 d = c * pc.exposure;

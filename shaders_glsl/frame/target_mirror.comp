@@ -69,7 +69,7 @@ void main() {
         if (s != 0.0) ea += s * live_eadd(i, y, live_normal(tri, -r), tri, p);
     }
     vec3 col = q >= 0 ? texelFetch(tex_img, ivec3(xy, j), 0).rgb : vec3(0.0);
-    if (original_light(y, r, pc.norig, pc.alpha_dim, col, ea, le)) { mirror[p] = vec4(le, distance(y, x)); return; }
+    if (original_light(y, r, pc.norig, pc.alpha_dim, col, ea, 0.0, le)) { mirror[p] = vec4(le, distance(y, x)); return; }
     if (q < 0) return;
     vec3 es = texelFetch(tex_esrc, ivec3(xy, j), 0).rgb;
     vec3 modified = ea + es - pc.alpha_dim * es;

@@ -8,7 +8,7 @@ use crate::gpu::shaders;
 use glam::Vec3;
 
 use crate::bake::GpuLight;
-use crate::constants::{E_FLOOR, LIGHT_SKIN};
+use crate::constants::{E_FLOOR, LEAK_PX, LIGHT_SKIN};
 use crate::scene::{Camera, GpuCamera, Light, Mesh};
 
 #[repr(C)]
@@ -259,19 +259,24 @@ impl GpuOriginal {
 }
 
 /// The glow of the declared original light that the proxy point `y`, seen along unit `d`, lies
-/// on (its emitting side, within `LIGHT_SKIN` of its plane, inside its outline), and that
-/// light: `seen` (the photos' radiance at `y`), or its declared radiance where `seen` is black
-/// (no view sees `y`).
+/// on (its emitting side, within `LIGHT_SKIN` of its plane, inside its outline grown by
+/// `margin` metres, where the pixel filter spreads its glow), and that light: `seen` (the
+/// photos' radiance at `y`), or where `seen` is black (no view sees `y`) its declared radiance
+/// on the light itself and nothing beside it.
 pub fn original_glow(
     originals: &[GpuOriginal],
     y: Vec3,
     d: Vec3,
     seen: Vec3,
+    margin: f32,
 ) -> Option<(Vec3, &GpuOriginal)> {
-    let o = originals
-        .iter()
-        .find(|o| d.dot(o.light.normal()) < 0.0 && o.light.near(y, LIGHT_SKIN, 0.0))?;
-    let glow = if seen == Vec3::ZERO {
+    let hole = seen == Vec3::ZERO;
+    let o = originals.iter().find(|o| {
+        let l = &o.light;
+        let near = d.dot(l.normal()) < 0.0 && l.near(y, LIGHT_SKIN + margin, margin);
+        near && (!hole || l.near(y, LIGHT_SKIN, 0.0))
+    })?;
+    let glow = if hole {
         Vec3::from_slice(&o.light.radiance[..3])
     } else {
         seen
@@ -286,14 +291,20 @@ pub fn original_glow(
 pub fn original_light(
     originals: &[GpuOriginal],
     alpha_dim: f32,
-    y: Vec3,
-    d: Vec3,
+    (y, d): (Vec3, Vec3),
     seen: Vec3,
     ea: Vec3,
+    margin: f32,
 ) -> Option<Vec3> {
-    let (glow, o) = original_glow(originals, y, d, seen)?;
+    let (glow, o) = original_glow(originals, y, d, seen, margin)?;
     let rho = Vec3::from_slice(&o.albedo[..3]);
     Some((1.0 - alpha_dim) * glow + rho / std::f32::consts::PI * ea)
+}
+
+/// Metres around a point at camera depth `z` that `LEAK_PX` pixels of `cam` span: how far the
+/// photos' pixel filter spreads a light's glow.
+pub fn leak_margin(cam: &Camera, z: f32) -> f32 {
+    LEAK_PX * z / cam.fx
 }
 
 /// The unit camera ray through the centre of pixel `p` (row-major).
@@ -316,7 +327,9 @@ pub fn original_glow_image(
         .map(|p| {
             let (g, c) = (gpos[p], comp[p]);
             let (y, seen) = (Vec3::from_slice(&g[..3]), Vec3::from_slice(&c[..3]));
-            let on = (g[3] > 0.0).then(|| original_glow(originals, y, pixel_ray(cam, p), seen));
+            let margin = leak_margin(cam, g[3]);
+            let on =
+                (g[3] > 0.0).then(|| original_glow(originals, y, pixel_ray(cam, p), seen, margin));
             match on.flatten() {
                 Some((glow, o)) => (glow.into(), [o.albedo[0], o.albedo[1], o.albedo[2]]),
                 None => ([0.0; 3], [0.0; 3]),
@@ -353,8 +366,9 @@ pub fn reference_emitters(
             let (g, pos) = (gpos[p], v3(&gpos[p]));
             let t = if g[3] > 0.0 { pos.distance(eye) } else { 1e30 };
             let (o, a) = (drawn.originals, drawn.alpha_dim);
+            let margin = leak_margin(cam, g[3]);
             let seen = (g[3] > 0.0)
-                .then(|| original_light(o, a, pos, d, v3(&comp[p]), v3(&eadd[p])))
+                .then(|| original_light(o, a, (pos, d), v3(&comp[p]), v3(&eadd[p]), margin))
                 .flatten();
             match nearest_emitter(drawn.added, drawn.intensities, eye, d, t) {
                 Some((le, _)) => le.into(),

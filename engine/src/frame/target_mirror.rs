@@ -79,7 +79,8 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
                 ea += v.eadd(r.intensities, y, ny, h.tri as usize, p as u32);
             }
             let col = q.map_or(Vec3::ZERO, |_| v3(r.maps.img[j][qp]));
-            let glow = super::output::original_light(r.originals, r.alpha_dim, y, rd, col, ea);
+            let glow =
+                super::output::original_light(r.originals, r.alpha_dim, (y, rd), col, ea, 0.0);
             if let Some(le) = glow {
                 return [le.x, le.y, le.z, y.distance(x)];
             }
