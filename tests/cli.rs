@@ -56,6 +56,22 @@ fn bad_input_exits_non_zero_with_the_file_named() {
     assert!(err.contains("0x5"), "{err}");
 }
 
+/// Output into a pipe closed early (`relit info | head -0`): the process ends without a panic.
+#[test]
+fn a_closed_stdout_ends_quietly() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_relit"))
+        .arg("info")
+        .env("RELIT_VALIDATE", "0")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run relit");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("wait");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+}
+
 #[test]
 fn info_reports_features_and_network_path() {
     let (code, out, err) = relit(&["info", "--validate"]);

@@ -818,6 +818,12 @@ fn bake(
 }
 
 fn main() {
+    // Output piped into `head` and the like: a closed pipe ends the process quietly, as other
+    // command-line tools do, instead of a panic in println!.
+    // SAFETY: restores a signal's default disposition before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let opts = gpu_options(&cli);
     MESH.set(cli.mesh.clone()).expect("set once");
