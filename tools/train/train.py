@@ -97,6 +97,17 @@ def draw_lights(img, lights):
     return torch.cat([od, torch.where(on, torch.zeros_like(img[:, 3:6]), img[:, 3:6])], 1)
 
 
+def drawn_targets(d, t, lights):
+    """The loss's targets (tm diffuse, tm total) with the drawn lights' value on their pixels:
+    the frame draws them whatever the network outputs, so nothing is asked of it there. (The
+    truth's split of an emitter's radiance into diffuse and view-dependent parts would otherwise
+    weigh 10× in the view-dependent term on pixels no output of the network reaches.)"""
+    if lights is None:
+        return d, t
+    on = lights[:, :1] > 0
+    return torch.where(on, lights[:, 1:4], d), torch.where(on, lights[:, 1:4], t)
+
+
 def ratio_image(x, lights=None):
     """The engine's ratio mode as the trainer sees it: eq. 5's ratio image (tonemapped) with the
     declared original lights drawn."""
@@ -162,7 +173,7 @@ def validate(net, val, seed, device, vgg, lambda_vgg):
             for _ in range(3):
                 x, d, t, lights = batch(s, *random_lighting(s, rng), None, rng, device)
                 out = draw_lights(net(x), lights)
-                total += losses(out, d, t, vgg=vgg, lambda_vgg=lambda_vgg).item()
+                total += losses(out, *drawn_targets(d, t, lights), vgg=vgg, lambda_vgg=lambda_vgg).item()
                 n += 1
                 p = covered_psnr(out[:, :3] + out[:, 3:6], t, x)
                 r = covered_psnr(ratio_image(x, lights), t, x)
@@ -391,6 +402,7 @@ def step_loss(a, net, disc, vgg, train, nbr, warps, i, lighting, rng, row):
     s = train[i]
     both = a.multiview > 0 and nbr[i] is not None
     x, d, t, lights = batch(s, *lighting, None if both else a.crop, rng, a.device)
+    d, t = drawn_targets(d, t, lights)
     if both:
         # The neighbour goes through the network in the same batch (one forward, one backward).
         xb, _, _, lights_b = batch(train[nbr[i]], *lighting, None, rng, a.device)
