@@ -539,12 +539,7 @@ fn ground_truth(
             return Ok(None);
         }
         let (d, t) = (image::load_rgb(&d)?, image::load_rgb(&t)?);
-        let planar = |im: &relit_engine::scene::RgbImage| -> Vec<f32> {
-            (0..3)
-                .flat_map(|c| im.pixels.iter().map(move |p| p[c]))
-                .collect()
-        };
-        let (pd, pt) = (planar(&d), planar(&t));
+        let (pd, pt) = (planar_rgb(&d.pixels), planar_rgb(&t.pixels));
         match &mut acc {
             None => {
                 acc = Some((
@@ -647,8 +642,7 @@ pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> 
         );
         r.render(&cam, &light, Mode::Ratio, 1.0, None)?;
         let input = r.buffers_ref().unwrap().input.download_chw()?;
-        let hdr = r.hdr()?;
-        let ratio = (0..3).flat_map(|c| hdr.iter().map(move |p| p[c])).collect();
+        let ratio = planar_rgb(&r.hdr()?);
         let mut t = vec![
             ("input".to_string(), input, vec![66, h, w]),
             ("ratio_image".to_string(), ratio, vec![3, h, w]),
@@ -780,11 +774,7 @@ type FramePlanes = (Vec<f32>, [Vec<f32>; 3], Vec<f32>);
 fn frame_planes(r: &Renderer) -> Result<FramePlanes> {
     let b = r.buffers_ref().context("no frame rendered")?;
     let n = (b.width * b.height) as usize;
-    let planar = |v: &[[f32; 4]]| -> Vec<f32> {
-        (0..3)
-            .flat_map(|c| v[..n].iter().map(move |p| p[c]))
-            .collect()
-    };
+    let planar = planar_rgb::<4>;
     let irr: Vec<[f32; 4]> = b.irr.download_vec()?;
     let mirror: Vec<[f32; 4]> = b.mirror.download_vec()?;
     Ok((
@@ -806,13 +796,13 @@ fn glow_planes(r: &Renderer, cam: &Camera) -> Result<(Vec<f32>, Vec<f32>)> {
     let g = b.gbuf.download()?;
     let comp = b.composites()?;
     let img = frame::output::original_glow_image(cam, &g.pos_depth, &comp[..n], &r.scene.originals);
-    let glow = (0..3)
-        .flat_map(|c| img.iter().map(move |p| p.0[c]))
-        .collect();
-    let albedo = (0..3)
-        .flat_map(|c| img.iter().map(move |p| p.1[c]))
-        .collect();
-    Ok((glow, albedo))
+    let (glow, albedo): (Vec<[f32; 3]>, Vec<[f32; 3]>) = img.into_iter().unzip();
+    Ok((planar_rgb(&glow), planar_rgb(&albedo)))
+}
+
+/// The first three channels of per-pixel values, planar (R plane, G plane, B plane).
+fn planar_rgb<const N: usize>(v: &[[f32; N]]) -> Vec<f32> {
+    (0..3).flat_map(|c| v.iter().map(move |p| p[c])).collect()
 }
 
 /// target_diffuse, target_total and target_glossy (total − diffuse), names ending in `suffix`.

@@ -275,8 +275,8 @@ impl FrameScene {
             GpuViews::build_streamed(gpu, &rs, cameras, |j| Ok(rgba(j).collect()))?
         };
         let maps = maps(host)?;
-        let added = lights.iter().filter(|l| !l.original);
-        let emitters: Vec<GpuLight> = added.map(GpuLight::new).collect();
+        let added: Vec<&Light> = lights.iter().filter(|l| !l.original).collect();
+        let emitters: Vec<GpuLight> = added.iter().map(|l| GpuLight::new(l)).collect();
         let originals = original_lights(lights, None);
         Ok(FrameScene {
             mesh: rs,
@@ -285,11 +285,7 @@ impl FrameScene {
             data,
             views,
             maps,
-            lights: lights
-                .iter()
-                .filter(|l| !l.original)
-                .map(|l| l.name.clone())
-                .collect(),
+            lights: added.iter().map(|l| l.name.clone()).collect(),
             unbaked: Vec::new(),
             emitter_buf: light_buffer(gpu, "frame emitters", &emitters)?,
             emitters,
