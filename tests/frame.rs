@@ -6,8 +6,8 @@ mod common;
 
 use glam::Vec3;
 use relit_engine::frame::{
-    self, features, irradiance, output, reproject, target_mirror, view_cull, FrameScene, HostMaps,
-    Lighting, MapFormat, Mode, RefInputs, Renderer,
+    self, emitters, features, irradiance, output, reproject, target_mirror, view_cull, FrameScene,
+    HostMaps, Lighting, MapFormat, Mode, RefInputs, Renderer,
 };
 use relit_engine::net::{NetBase, NetConfig, NetKernels, Network, Params, RandomParams, Storage};
 use relit_engine::raster::GbufferPixels;
@@ -307,14 +307,14 @@ fn frame_passes_match_cpu_references() {
         })
         .collect();
     let (added, originals) = (r.scene.emitters.clone(), r.scene.originals.clone());
-    let drawn = output::Drawn {
+    let drawn = emitters::Drawn {
         added: &added,
         intensities: &lighting.intensities,
         originals: &originals,
         alpha_dim: lighting.alpha_dim,
     };
     let draw = |base: &[[f32; 3]]| {
-        output::reference_emitters(
+        emitters::reference_emitters(
             &t.novel,
             &g.pos_depth,
             (&comp, &irr[npix..2 * npix]),
@@ -329,7 +329,7 @@ fn frame_passes_match_cpu_references() {
         t.novel.ray_dir(xy).normalize()
     };
     let eye = t.novel.center();
-    let lit = |p| output::nearest_emitter(&added, drawn.intensities, eye, ray(p), 1e30);
+    let lit = |p| emitters::nearest_emitter(&added, drawn.intensities, eye, ray(p), 1e30);
     let (mut by_a, mut by_panel) = (0, 0);
     for p in (0..npix).filter(|&p| ulr_want[p] != ulr[p]) {
         if lit(p).is_some() {
@@ -349,7 +349,7 @@ fn frame_passes_match_cpu_references() {
     );
     let p = (8 * t.novel.width + 8) as usize;
     let ea = Vec3::from_slice(&irr[npix + p][..3]);
-    let albedo = output::EMITTER_ALBEDO; // no albedo mesh here
+    let albedo = emitters::EMITTER_ALBEDO; // no albedo mesh here
     let i1 = Vec3::from_slice(&comp[p][..3]);
     assert!(i1 != Vec3::ZERO, "a view sees the panel's centre");
     let want = 0.6 * i1 + albedo / std::f32::consts::PI * ea;
@@ -990,13 +990,13 @@ fn an_original_lights_albedo_is_the_albedo_mesh_around_it() {
         colors: None,
         triangles: vec![],
     };
-    let o = output::GpuOriginal::new(&light, Some((&mesh(positions.clone()), &albedo)));
+    let o = emitters::GpuOriginal::new(&light, Some((&mesh(positions.clone()), &albedo)));
     let want = Vec3::new(0.5, 0.1, 0.75);
     let got = Vec3::from_slice(&o.albedo[..3]);
     assert!((got - want).abs().max_element() < 1e-6, "{:?}", o.albedo);
-    let grey = [output::EMITTER_ALBEDO; 3];
-    assert_eq!(output::GpuOriginal::new(&light, None).albedo[..3], grey);
+    let grey = [emitters::EMITTER_ALBEDO; 3];
+    assert_eq!(emitters::GpuOriginal::new(&light, None).albedo[..3], grey);
     let none_around = mesh(vec![positions[0], positions[1], positions[4]]);
-    let o = output::GpuOriginal::new(&light, Some((&none_around, &albedo[..3])));
+    let o = emitters::GpuOriginal::new(&light, Some((&none_around, &albedo[..3])));
     assert_eq!(o.albedo[..3], grey);
 }

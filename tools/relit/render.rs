@@ -789,13 +789,14 @@ fn frame_planes(r: &Renderer) -> Result<FramePlanes> {
 }
 
 /// The glow of the declared original lights the last frame shows and their albedo, each planar
-/// 3×H×W, zero off them (`frame::output::original_glow_image`).
+/// 3×H×W, zero off them (`frame::emitters::original_glow_image`).
 fn glow_planes(r: &Renderer, cam: &Camera) -> Result<(Vec<f32>, Vec<f32>)> {
     let b = r.buffers_ref().context("no frame rendered")?;
     let n = (b.width * b.height) as usize;
     let g = b.gbuf.download()?;
     let comp = b.composites()?;
-    let img = frame::output::original_glow_image(cam, &g.pos_depth, &comp[..n], &r.scene.originals);
+    let img =
+        frame::emitters::original_glow_image(cam, &g.pos_depth, &comp[..n], &r.scene.originals);
     let (glow, albedo): (Vec<[f32; 3]>, Vec<[f32; 3]>) = img.into_iter().unzip();
     Ok((planar_rgb(&glow), planar_rgb(&albedo)))
 }

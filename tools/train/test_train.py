@@ -135,7 +135,20 @@ class TrainerTest(unittest.TestCase):
         r = train(self.data, self.run_dir("margin_none"), "--steps", "1", "--base", "none",
                   "--margin", "0.05")
         self.assertNotEqual(r.returncode, 0)
-        self.assertIn("--margin needs --base ratio", r.stderr)
+        self.assertIn("--margin and --floor need --base ratio", r.stderr)
+
+    def test_the_floor_term_trains_and_is_kept_with_the_run(self):
+        run = self.run_dir("floor")
+        r = train(self.data, run, "--steps", "2", "--base", "ratio", "--floor", "0.5")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertTrue(all("margin" in row for row in log(run) if "loss" in row))
+        r = train(self.data, run, "--steps", "3", "--base", "ratio", "--resume")
+        self.assertNotEqual(r.returncode, 0)    # resuming without the term is another recipe
+        self.assertIn("floor", r.stderr)
+        r = train(self.data, self.run_dir("floor_none"), "--steps", "1", "--base", "none",
+                  "--floor", "0.5")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("--margin and --floor need --base ratio", r.stderr)
 
     def test_original_lights_are_drawn_as_the_engine_draws_them_and_get_no_gradient(self):
         sys.path.insert(0, HERE)

@@ -295,6 +295,10 @@ def parse_args():
     ap.add_argument("--margin", type=float, default=0.0, metavar="λ",
                     help="base ratio: λ · dB by which the image falls below the ratio image on "
                          "the crop's covered pixels (the evaluation's per-view margin; 0: off)")
+    ap.add_argument("--floor", type=float, default=0.0, metavar="λ",
+                    help="base ratio: λ · the dB by which the image falls below the ratio image, "
+                         "only where it does (the --margin term's hinge: a crop above ratio "
+                         "earns nothing, so corrections are pushed off crops they worsen)")
     ap.add_argument("--gate", type=float, default=0.0, metavar="G",
                     help="base ratio: scale corrections by min(1, new light's share / G) on "
                          "covered pixels, so that where no lamp reaches the image is ratio's (0: off)")
@@ -416,10 +420,10 @@ def step_loss(a, net, disc, vgg, train, nbr, warps, i, lighting, rng, row):
         c = correction_l1(out, x, lights)
         row["correction_l1"] = c.item()
         loss = loss + a.correction_l1 * c
-    if a.margin > 0:
+    if a.margin > 0 or a.floor > 0:
         m = margin_loss(out, t, x, lights)
         row["margin"] = m.item()
-        loss = loss + a.margin * m
+        loss = loss + a.margin * m + a.floor * torch.relu(m)
     if both:
         if (i, nbr[i]) not in warps:
             warps[(i, nbr[i])] = MV.warp(s, train[nbr[i]])
@@ -440,8 +444,9 @@ def main():
         sys.exit("--resume continues this run, --init-from starts one: pass one of them")
     if a.correction_l1 and a.base != "ratio":
         sys.exit("--correction-l1 needs --base ratio (a correction is relative to the ratio image)")
-    if a.margin and a.base != "ratio":
-        sys.exit("--margin needs --base ratio (it measures the image against the ratio image)")
+    if (a.margin or a.floor) and a.base != "ratio":
+        sys.exit("--margin and --floor need --base ratio (they measure the image against the "
+                 "ratio image)")
     if a.gate and a.base != "ratio":
         sys.exit("--gate needs --base ratio (it scales the corrections to the ratio image)")
     if a.threads:
@@ -476,6 +481,8 @@ def main():
         terms["correction_l1"] = a.correction_l1   # absent before the term existed
     if a.margin:
         terms["margin"] = a.margin
+    if a.floor:
+        terms["floor"] = a.floor   # absent before the term existed
     step = 0
     if a.resume:
         if not os.path.exists(ckpt):

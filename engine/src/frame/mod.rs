@@ -3,6 +3,7 @@
 //! network (or the ULR composite) and the output transform. One Rust file and one shader per
 //! pass, each with a CPU reference on small inputs (tests/frame.rs).
 
+pub mod emitters;
 pub mod features;
 pub mod irradiance;
 pub mod live;
@@ -133,7 +134,7 @@ pub struct RefInputs<'a> {
     /// The added lights' shapes (drawn where seen, in the mirror too).
     pub emitters: &'a [GpuLight],
     /// The declared original lights (drawn where seen, dimmed).
-    pub originals: &'a [output::GpuOriginal],
+    pub originals: &'a [emitters::GpuOriginal],
     /// Live lights, when some are (frame/live.rs).
     pub live: Option<LiveRef<'a>>,
 }
@@ -212,7 +213,7 @@ pub struct FrameScene {
     pub emitters: Vec<GpuLight>,
     emitter_buf: Buffer,
     /// The declared original lights (drawn where seen, dimmed by α_dim).
-    pub originals: Vec<output::GpuOriginal>,
+    pub originals: Vec<emitters::GpuOriginal>,
     original_buf: Buffer,
     pub sampler: Sampler,
 }
@@ -226,14 +227,14 @@ fn light_buffer<T: bytemuck::Pod>(gpu: &Arc<Gpu>, name: &str, items: &[T]) -> Re
 }
 
 /// The declared original lights of `lights`, each with its surface's albedo from the albedo
-/// mesh when there is one ([`output::GpuOriginal::new`]).
+/// mesh when there is one ([`emitters::GpuOriginal::new`]).
 fn original_lights(
     lights: &[Light],
     albedo: Option<(&crate::scene::Mesh, &[[f32; 4]])>,
-) -> Vec<output::GpuOriginal> {
+) -> Vec<emitters::GpuOriginal> {
     let declared = lights.iter().filter(|l| l.original);
     declared
-        .map(|l| output::GpuOriginal::new(l, albedo))
+        .map(|l| emitters::GpuOriginal::new(l, albedo))
         .collect()
 }
 

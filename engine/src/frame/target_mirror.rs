@@ -53,7 +53,7 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
             let hit = crate::cpu::closest_hit(mesh, o, rd, 1e-3, 1e4);
             let t = hit.as_ref().map_or(1e30, |h| h.t);
             if let Some((le, tl)) =
-                super::output::nearest_emitter(r.emitters, r.intensities, o, rd, t)
+                super::emitters::nearest_emitter(r.emitters, r.intensities, o, rd, t)
             {
                 return [le.x, le.y, le.z, tl];
             }
@@ -80,7 +80,7 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
             }
             let col = q.map_or(Vec3::ZERO, |_| v3(r.maps.img[j][qp]));
             let glow =
-                super::output::original_light(r.originals, r.alpha_dim, (y, rd), col, ea, 0.0);
+                super::emitters::original_light(r.originals, r.alpha_dim, (y, rd), col, ea, 0.0);
             if let Some(le) = glow {
                 return [le.x, le.y, le.z, y.distance(x)];
             }
