@@ -441,19 +441,21 @@ fn leave_one_out_excludes_the_view_from_every_pass() {
 /// network run separately on the frame's own input tensor, for both bases (the ratio base is
 /// formed from that input by `output::ratio_base`, as `model.py` forms it), with `shrink`, and
 /// with `gate` under a dimmed original light and a lamp (the lamp's share of the light, 0.3–0.5,
-/// below the gate's 1: every correction scaled).
+/// below the gate's 1: every correction scaled), and with `gain` alone and gated.
 #[test]
 fn network_mode_output_matches_network_on_the_frame_input() {
     let gpu = common::gpu();
     let t = tiny();
-    for (storage, base, shrink, gate) in [
-        (Storage::F32, NetBase::None, 0.0, 0.0),
-        (Storage::F16, NetBase::None, 0.0, 0.0),
-        (Storage::F32, NetBase::Ratio, 0.0, 0.0),
-        (Storage::F16, NetBase::Ratio, 0.0, 0.0),
-        (Storage::F32, NetBase::Ratio, 0.02, 0.0),
-        (Storage::F32, NetBase::Ratio, 0.0, 1.0),
-        (Storage::F16, NetBase::Ratio, 0.02, 1.0),
+    for (storage, base, shrink, gate, gain) in [
+        (Storage::F32, NetBase::None, 0.0, 0.0, false),
+        (Storage::F16, NetBase::None, 0.0, 0.0, false),
+        (Storage::F32, NetBase::Ratio, 0.0, 0.0, false),
+        (Storage::F16, NetBase::Ratio, 0.0, 0.0, false),
+        (Storage::F32, NetBase::Ratio, 0.02, 0.0, false),
+        (Storage::F32, NetBase::Ratio, 0.0, 1.0, false),
+        (Storage::F16, NetBase::Ratio, 0.02, 1.0, false),
+        (Storage::F32, NetBase::Ratio, 0.0, 0.0, true),
+        (Storage::F32, NetBase::Ratio, 0.0, 1.0, true),
     ] {
         let lights = if gate > 0.0 { &t.lights[..] } else { &[] };
         let scene =
@@ -464,6 +466,7 @@ fn network_mode_output_matches_network_on_the_frame_input() {
         cfg.base = base;
         cfg.shrink = shrink;
         cfg.gate = gate;
+        cfg.gain = gain;
         let mk = || {
             Network::from_params(
                 NetKernels::new(&gpu, storage).unwrap(),
@@ -492,19 +495,17 @@ fn network_mode_output_matches_network_on_the_frame_input() {
         let has = surface_mask(b);
         let out = mk().run(&input, h, w).unwrap();
         let ratio_in = (base == NetBase::Ratio).then_some(&input[..]);
-        let want = output::reference_network(&out, ratio_in, (shrink, gate), npix, &has);
-        if shrink > 0.0 || gate > 0.0 {
-            let plain = output::reference_network(&out, ratio_in, (0.0, 0.0), npix, &has);
-            assert!(
-                want != plain,
-                "shrink {shrink}, gate {gate} changed nothing: not a test of them"
-            );
+        let c = output::Corrections { shrink, gate, gain };
+        let want = output::reference_network(&out, ratio_in, c, npix, &has);
+        if c != output::Corrections::default() {
+            let plain = output::reference_network(&out, ratio_in, Default::default(), npix, &has);
+            assert!(want != plain, "{c:?} changed nothing: not a test of them");
         }
         assert_close(
             &r.hdr().unwrap(),
             &want,
             1e-3,
-            &format!("{storage:?} {base:?} shrink {shrink} gate {gate}"),
+            &format!("{storage:?} {base:?} {c:?}"),
         );
         assert!(r
             .render(&t.novel, &lighting, Mode::Network, 1.0, None)

@@ -184,11 +184,12 @@ fn network_matches_pytorch_golden() {
 /// A network with base "ratio": the output pass's CPU reference (`reference_network` with the
 /// input) turns the raw golden output into the image PyTorch composes (`model.py`: the ratio
 /// base added to O_d), within 1e-4 of the image's scale, without `shrink` or `gate`, with the
-/// golden's shrink (every correction soft-thresholded) and with its gate (every correction scaled
-/// by the input's change of lighting); the GPU output pass is held to that reference by
-/// tests/frame.rs.
+/// golden's shrink (every correction soft-thresholded), with its gate (every correction scaled
+/// by the input's change of lighting) and with the gate and `gain` (the diffuse correction a gain
+/// on the base); the GPU output pass is held to that reference by tests/frame.rs.
 #[test]
 fn ratio_base_matches_pytorch_golden() {
+    use relit_engine::frame::output::{reference_network, Corrections};
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
     let io = std::fs::read(dir.join("net_w12r.io.safetensors")).unwrap();
     let (_, meta) = safetensors::SafeTensors::read_metadata(&io).unwrap();
@@ -199,19 +200,15 @@ fn ratio_base_matches_pytorch_golden() {
     let (_, x, y, shape) = golden("net_w12r");
     let npix = shape[1] * shape[2];
     let untm = relit_engine::frame::features::untonemap;
+    let c = |shrink, gate, gain| Corrections { shrink, gate, gain };
     for (key, options) in [
-        ("image", (0.0, 0.0)),
-        ("image_shrink", (shrink, 0.0)),
-        ("image_gate", (0.0, gate)),
+        ("image", c(0.0, 0.0, false)),
+        ("image_shrink", c(shrink, 0.0, false)),
+        ("image_gate", c(0.0, gate, false)),
+        ("image_gain", c(0.0, gate, true)),
     ] {
         let image: Vec<f32> = bytemuck::pod_collect_to_vec(st.tensor(key).unwrap().data());
-        let got = relit_engine::frame::output::reference_network(
-            &y,
-            Some(&x),
-            options,
-            npix,
-            &vec![true; npix],
-        );
+        let got = reference_network(&y, Some(&x), options, npix, &vec![true; npix]);
         let want: Vec<f32> = (0..3)
             .flat_map(|k| (0..npix).map(move |p| (k, p)))
             .map(|(k, p)| untm(image[k * npix + p] + image[(k + 3) * npix + p]))

@@ -13,7 +13,8 @@
 // untonemapped), as model.py's ratio_base does, so the trainer and the engine compute the same.
 // Its shrink τ soft-thresholds each correction where I_1 (the input's channels 0–2) is not black;
 // its gate G then scales it there by min(1, f / G), f = max over RGB of E_add / (E_src − E_rem +
-// E_add), the new light's share: where no lamp reaches, the image is ratio's exactly.
+// E_add), the new light's share: where no lamp reaches, the image is ratio's exactly. Its gain
+// turns the diffuse correction there into a gain on the base that keeps the base's colour.
 #extension GL_EXT_scalar_block_layout : require
 #include "act_storage.glsl"
 #include "camera.glsl"
@@ -36,6 +37,7 @@ layout(push_constant, scalar) uniform Push {
     uint base;       // NetBase: 0 none, 1 ratio
     float shrink;    // NetConfig::shrink (0: none)
     float gate;      // NetConfig::gate (0: none)
+    uint gain;       // NetConfig::gain (1: the diffuse correction is a gain on the base)
     uint norig;      // declared original lights (emitters.glsl)
     float alpha_dim; // §4.1.4: 0 keeps the original lighting, 1 removes it
 } pc;
@@ -77,6 +79,14 @@ vec3 ratio_image(uint p, uint npix) {
 
 vec3 soft_threshold(vec3 c, float t) { return sign(c) * max(abs(c) - t, vec3(0.0)); }
 
+// gain's diffuse image: tm(untm(B)·exp(w·g)), g the log ratio of the RGB means of untm(B + d)
+// and untm(B), each plus GAIN_EPS (output.rs `gained`, model.py `log_gain`).
+vec3 gained(vec3 b, vec3 d, float w) {
+    vec3 lb = untm(b), ld = untm(b + d);
+    float g = log((ld.r + ld.g + ld.b) / 3.0 + GAIN_EPS) - log((lb.r + lb.g + lb.b) / 3.0 + GAIN_EPS);
+    return tm(lb * exp(w * g));
+}
+
 // Network mode's image: O_d + O_v, and with base "ratio" the ratio base plus the corrections,
 // soft-thresholded and gated on covered pixels. A closed gate leaves ratio's own image (not its
 // round trip through the input tensor, which fp16 storage rounds).
@@ -89,7 +99,9 @@ vec3 network_image(uint p, uint npix) {
         float t = covered ? pc.shrink : 0.0;
         float w = covered && pc.gate > 0.0 ? min(new_light_share(e) / pc.gate, 1.0) : 1.0;
         if (w == 0.0) return ratio_image(p, npix);
-        od = w * soft_threshold(od, t) + ratio_base(p, e);
+        vec3 b = ratio_base(p, e);
+        od = soft_threshold(od, t);
+        od = pc.gain == 1u && covered ? gained(b, od, w) : b + w * od;
         ov = w * soft_threshold(ov, t);
     }
     return untm(max(od + ov, vec3(0.0)));

@@ -23,3 +23,4 @@ def read(path=TABLE):
 _C = read()
 MU = _C["MU"]
 E_FLOOR = _C["E_FLOOR"]
+GAIN_EPS = _C["GAIN_EPS"]

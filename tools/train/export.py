@@ -2,7 +2,7 @@
 weights file (`relit render --weights W`) and the run's curves.png.
 
     python tools/train/export.py RUN|W [--out W] [--dtype f16|f32] [--average W1 ...] [--shrink T]
-        [--gate G]
+        [--gate G] [--gain]
 
 RUN is a run directory (its checkpoint is exported), W weights a run kept along the way
 (`train.py --save-every`).
@@ -22,6 +22,9 @@ image as it is. Choose T on the validation rooms (evaluate.py), never on held-ou
 `--gate G` sets the exported network's gate (model.py's `gate`, base "ratio" only): on a
 covered pixel each correction is scaled by min(1, f / G), f the new light's share of the pixel's
 light, so that where no lamp reaches the image is ratio's exactly.
+
+`--gain` makes the exported network's diffuse correction a gain on the ratio image that keeps
+its colour (model.py's `gain`, base "ratio" only).
 """
 
 import argparse
@@ -87,11 +90,11 @@ def with_option(net, key, value):
     net.config = cfg
 
 
-def export(run, out, dtype, average=(), shrink=None, gate=None):
+def export(run, out, dtype, average=(), shrink=None, gate=None, gain=None):
     net, trained = load_base(run)
     if average:
         trained["averaged_with"] = average_into(net, average)
-    for key, value in (("shrink", shrink), ("gate", gate)):
+    for key, value in (("shrink", shrink), ("gate", gate), ("gain", gain)):
         if value is not None:
             with_option(net, key, value)
     tmp = out + ".tmp"
@@ -114,11 +117,13 @@ def main():
                     help="soft threshold on the corrections (base ratio): below T, the ratio image")
     ap.add_argument("--gate", type=float, metavar="G",
                     help="scale corrections by min(1, new light's share / G) (base ratio)")
+    ap.add_argument("--gain", action="store_const", const=True,
+                    help="the diffuse correction as a colour-keeping gain on the ratio image")
     a = ap.parse_args()
     if not a.out and not os.path.isdir(a.run):
         sys.exit("--out is needed when exporting a weights file")
     out = a.out or os.path.join(a.run, "weights.safetensors")
-    step = export(a.run, out, a.dtype, a.average, a.shrink, a.gate)
+    step = export(a.run, out, a.dtype, a.average, a.shrink, a.gate, a.gain)
     print(f"{out}: step {step}, {os.path.getsize(out) / 1e6:.1f} MB ({a.dtype})"
           + (f", averaged with {', '.join(a.average)}" if a.average else ""))
 

@@ -8,7 +8,8 @@ convs) and a random input, with the PyTorch output computed in float64.
 "image": the composed [O_d, O_v] (the ratio base added to O_d), which the engine's output
 pass must reproduce from the raw output and the input (`frame::output::reference_network`),
 "image_shrink": the same with `shrink` τ = SHRINK (the file's metadata "shrink"), and
-"image_gate": the same with `gate` G = GATE (metadata "gate"), no shrink.
+"image_gate": the same with `gate` G = GATE (metadata "gate"), no shrink, and "image_gain": the
+same with the gate and `gain` (its diffuse correction a colour-keeping gain on the ratio image).
 
 and, whenever the shipped weights change, the output of the trained network built into relit
 (engine/weights/relit.safetensors) on a random input, with the weights' metadata copied so that
@@ -83,7 +84,10 @@ def main(out, names=()):
             with torch.no_grad():
                 io["image_gate"] = net(x)[0].float().contiguous()
                 w = M.gate_weight(x, GATE)
-            net.config["gate"] = 0.0
+            net.config["gain"] = True
+            with torch.no_grad():
+                io["image_gain"] = net(x)[0].float().contiguous()
+            net.config["gate"], net.config["gain"] = 0.0, False
             print(f"{name}: gate weights {float(w.min()):.3f}..{float(w.max()):.3f}, "
                   f"{float((w < 1).float().mean()) * 100:.0f}% below 1")
             meta = {"shrink": str(SHRINK), "gate": str(GATE)}

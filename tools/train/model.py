@@ -25,6 +25,14 @@ Structure (W = width):
                    ratio's image, (1 − α_dim) × I_1, is exactly as right as the photos'
                    composite: the image is ratio's there, whatever the weights, and the network
                    corrects only what the new light brings. 0 (default): no gate.
+  gain           : false or true (base "ratio" only): true turns the diffuse correction, on covered
+                   pixels, into a gain on the ratio image that keeps its colour: with B the
+                   ratio base and D = B + O_d, the log of the RGB mean's ratio,
+                   g = log(mean untm(D) + GAIN_EPS) − log(mean untm(B) + GAIN_EPS), scaled by
+                   the gate, multiplies untm(B): the diffuse image is tm(untm(B)·exp(w·g)). A
+                   network can then brighten or darken what ratio shows, not tint it (a
+                   trained network's corrections carried one warm cast into every room,
+                   whatever colour the lamp; session 21). false (default): additive corrections.
 
 Choices where the paper is silent (documented in the README): no activation after the
 downsampling convs, the input conv is linear, the output conv is linear with a bias.
@@ -41,9 +49,9 @@ import torch.nn.functional as F
 
 DEFAULT_CONFIG = dict(in_channels=66, width=66, trunk_blocks=4, levels=5, level_blocks=4,
                       tail_blocks=2, out_channels=6, base="none", shrink=0.0,
-                      gate=0.0)
+                      gate=0.0, gain=False)
 BASES = ("none", "ratio")
-from constants import E_FLOOR as _E_FLOOR, MU
+from constants import E_FLOOR as _E_FLOOR, GAIN_EPS, MU
 
 # Input channels (engine/src/frame/features.rs): I_1, E_src/π, E_add/π, E_rem/π, tonemapped.
 I1, E_SRC, E_ADD, E_REM = slice(0, 3), slice(51, 54), slice(54, 57), slice(57, 60)
@@ -62,14 +70,18 @@ def untm(y):
 
 def full_config(cfg):
     """A configuration with every key: checkpoints and files written before a key existed
-    (base, shrink, gate) hold its default."""
+    (base, shrink, gate, gain) hold its default."""
     return dict(DEFAULT_CONFIG, **cfg)
 
 
 def parameters_of(cfg):
-    """The keys of a configuration that decide the parameters (not shrink or gate, which act on
-    the output): two networks with equal ones can load each other's weights."""
-    return {k: v for k, v in full_config(cfg).items() if k not in ("shrink", "gate")}
+    """The keys of a configuration that decide the parameters (not shrink, gate or gain, which
+    act on the output): two networks with equal ones can load each other's weights."""
+    return {k: v for k, v in full_config(cfg).items() if k not in OUTPUT_KEYS}
+
+
+# The configuration keys that act on the output only.
+OUTPUT_KEYS = ("shrink", "gate", "gain")
 
 
 def soft_threshold(c, tau):
@@ -100,6 +112,13 @@ def new_light_share(x):
     input tensor (the denominator floored at ES_FLOOR): 0 where no lamp reaches the pixel."""
     es, ea, er = input_irradiance(x)
     return (ea / (es - er + ea).clamp(min=ES_FLOOR)).amax(1, keepdim=True)
+
+
+def log_gain(base, cd):
+    """N×1×H×W: g of `gain`, the log ratio of the RGB means of untm(base + cd) and untm(base)."""
+    a = untm(base + cd).mean(1, keepdim=True)
+    b = untm(base).mean(1, keepdim=True)
+    return torch.log(a + GAIN_EPS) - torch.log(b + GAIN_EPS)
 
 
 def gate_weight(x, g):
@@ -150,6 +169,11 @@ class RelightNet(nn.Module):
             raise ValueError(f"gate {c['gate']!r}: expected a finite value >= 0")
         if c["gate"] > 0 and c["base"] != "ratio":
             raise ValueError("gate applies to a network with base \"ratio\" only")
+        if c["gain"] not in (False, True):
+            raise ValueError(f"gain {c['gain']!r}: expected false or true")
+        c["gain"] = bool(c["gain"])
+        if c["gain"] and c["base"] != "ratio":
+            raise ValueError("gain applies to a network with base \"ratio\" only")
         self.config = c
         w = c["width"]
         total = c["trunk_blocks"] + c["levels"] * c["level_blocks"] + c["tail_blocks"]
@@ -173,10 +197,13 @@ class RelightNet(nn.Module):
                 seen = covered(x)
                 cd = torch.where(seen, soft_threshold(cd, tau), cd)
                 cv = torch.where(seen, soft_threshold(cv, tau), cv)
-            if self.config["gate"] > 0:
-                w = gate_weight(x, self.config["gate"])
-                cd, cv = cd * w, cv * w
-            y = torch.cat([cd + ratio_base(x), cv], 1)
+            w = gate_weight(x, self.config["gate"]) if self.config["gate"] > 0 else 1.0
+            base = ratio_base(x)
+            diffuse = base + w * cd
+            if self.config["gain"]:
+                lit = tm(untm(base) * torch.exp(w * log_gain(base, cd)))
+                diffuse = torch.where(covered(x), lit, diffuse)
+            y = torch.cat([diffuse, cv * w], 1)
         return y
 
     def raw(self, x):
@@ -219,6 +246,8 @@ def save(model, path, dtype=torch.float32, trained=None):
         del cfg["shrink"]  # likewise
     if cfg["gate"] == 0:
         del cfg["gate"]  # likewise
+    if not cfg["gain"]:
+        del cfg["gain"]  # likewise
     meta = {"relit.net": json.dumps(cfg, sort_keys=True)}
     if trained is not None:
         meta["relit.trained"] = json.dumps(trained, sort_keys=True)

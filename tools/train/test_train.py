@@ -221,6 +221,42 @@ class TrainerTest(unittest.TestCase):
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertEqual(M.load(out).config["gate"], 0.0)
 
+    def test_the_gain_keeps_ratios_colour_and_brightens_as_the_correction_asks(self):
+        sys.path.insert(0, HERE)
+        import torch
+        import model as M
+        net = M.RelightNet(width=8, trunk_blocks=1, level_blocks=1, tail_blocks=1, base="ratio",
+                           gain=True).double()
+        x = torch.rand(1, net.config["in_channels"], 16, 16, dtype=torch.float64) * 0.5 + 0.25
+        x[:, M.I1, :4] = 0                      # the top rows are a hole
+        x[:, M.E_REM] = 0                       # nothing removed: the ratio image is lit
+        base = M.ratio_base(x)
+        self.assertTrue(torch.allclose(net(x)[:, :3], base, atol=1e-6))   # untrained: ratio
+        with torch.no_grad():
+            net.out_conv.bias.copy_(torch.tensor([0.2, -0.1, 0.05, 0.0, 0.0, 0.0]))
+        cd = net.out_conv.bias[:3].view(1, 3, 1, 1)
+        out = net(x)[:, :3]
+        lin, lb = M.untm(out[:, :, 4:]), M.untm(base[:, :, 4:])
+        gain = lin / lb                          # one gain for the three channels
+        self.assertLess((gain - gain.mean(1, keepdim=True)).abs().max().item(), 1e-9)
+        want = M.untm(base[:, :, 4:] + cd).mean(1)
+        mb = lb.mean(1)                          # the RGB mean moves as the correction asks
+        ask = (want + M.GAIN_EPS) / (mb + M.GAIN_EPS)
+        self.assertLess((lin.mean(1) / mb / ask - 1).abs().max().item(), 1e-9)
+        self.assertGreater((ask - 1).abs().min().item(), 1e-3)
+        self.assertTrue(torch.allclose(out[:, :, :4], base[:, :, :4] + cd))   # holes: added
+        with self.assertRaises(ValueError):
+            M.RelightNet(width=8, gain=True)     # base none: no ratio image to gain
+        run = self.run_dir("gain")
+        r = train(self.data, run, "--steps", "1", "--base", "ratio")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        out = os.path.join(run, "gain.safetensors")
+        r = subprocess.run([sys.executable, os.path.join(HERE, "export.py"), run, "--out", out,
+                            "--gain"], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIs(M.load(out).config["gain"], True)
+        self.assertNotIn("gain", M.parameters_of(M.load(out).config))
+
     def test_a_signal_stops_the_run_at_a_checkpoint_that_resumes(self):
         run = self.run_dir("signal")
         args = [sys.executable, os.path.join(HERE, "train.py"), "--data", self.data, "--out", run,

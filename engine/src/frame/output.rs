@@ -4,7 +4,7 @@
 //! In every mode, lit added lights in front of the surface are drawn, and declared original
 //! lights on it, dimmed by α_dim (`frame/emitters.glsl`, [`super::emitters`]).
 
-use crate::constants::E_FLOOR;
+use crate::constants::{E_FLOOR, GAIN_EPS};
 use crate::gpu::shaders;
 use crate::scene::GpuCamera;
 
@@ -23,6 +23,8 @@ pub struct Push {
     pub shrink: f32,
     /// [`crate::net::NetConfig::gate`].
     pub gate: f32,
+    /// [`crate::net::NetConfig::gain`]: 1 on, 0 off.
+    pub gain: u32,
     /// Declared original lights (drawn where seen, dimmed).
     pub norig: u32,
     pub alpha_dim: f32,
@@ -46,6 +48,7 @@ pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
         base,
         shrink,
         gate,
+        gain,
         norig,
         alpha_dim
     ]
@@ -64,20 +67,31 @@ pub fn srgb(x: f32) -> f32 {
     }
 }
 
+/// What a base-"ratio" network's configuration does to its corrections on covered pixels
+/// ([`crate::net::NetConfig`]'s `shrink`, `gate` and `gain`; `model.py`'s output keys).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Corrections {
+    pub shrink: f32,
+    pub gate: f32,
+    pub gain: bool,
+}
+
 /// CPU reference of network mode: linear RGB per pixel from the 6 output channels (planar CHW),
 /// black where `has_surface` is false. With `ratio_input` (the network's 66-channel input,
 /// planar CHW), the diffuse channels correct [`ratio_base`] (a network with base "ratio"),
 /// each correction soft-thresholded by `shrink`, then scaled by [`gate_weight`] with `gate`,
-/// where I_1 is not black. (Where the gate is closed the GPU pass takes ratio mode's own
+/// where I_1 is not black; with `gain` the diffuse correction there becomes a gain on the
+/// base ([`gained`]). (Where the gate is closed the GPU pass takes ratio mode's own
 /// arithmetic, [`reference_ratio`]; this reference's ratio base from the input tensor equals it
 /// up to the tensor's storage precision.)
 pub fn reference_network(
     net_out: &[f32],
     ratio_input: Option<&[f32]>,
-    (shrink, gate): (f32, f32),
+    c: Corrections,
     npix: usize,
     has_surface: &[bool],
 ) -> Vec<[f32; 3]> {
+    use super::features::untonemap;
     (0..npix)
         .map(|p| {
             if !has_surface[p] {
@@ -86,17 +100,28 @@ pub fn reference_network(
             let base = ratio_input.map_or([0.0; 3], |x| ratio_base(x, npix, p));
             let covered = ratio_input.is_some_and(|x| (0..3).any(|k| x[k * npix + p] != 0.0));
             let (t, w) = match ratio_input {
-                Some(x) if covered => (shrink, gate_weight(x, npix, p, gate)),
+                Some(x) if covered => (c.shrink, gate_weight(x, npix, p, c.gate)),
                 _ => (0.0, 1.0),
             };
-            let c = |k: usize| {
-                let (d, v) = (net_out[k * npix + p], net_out[(k + 3) * npix + p]);
-                let o = base[k] + w * (soft_threshold(d, t) + soft_threshold(v, t));
-                super::features::untonemap(o)
+            let d = [0, 1, 2].map(|k| soft_threshold(net_out[k * npix + p], t));
+            let v = [0, 1, 2].map(|k| w * soft_threshold(net_out[(k + 3) * npix + p], t));
+            let diffuse = match c.gain && covered {
+                true => gained(base, d, w),
+                false => [0, 1, 2].map(|k| base[k] + w * d[k]),
             };
-            [c(0), c(1), c(2)]
+            [0, 1, 2].map(|k| untonemap(diffuse[k] + v[k]))
         })
         .collect()
+}
+
+/// `gain`'s diffuse image (tonemapped): tm(untm(B)·exp(w·g)), g the log ratio of the RGB means
+/// of untm(B + d) and untm(B), each plus GAIN_EPS; the ratio base B's colour is kept.
+pub fn gained(base: [f32; 3], d: [f32; 3], w: f32) -> [f32; 3] {
+    use super::features::{tonemap, untonemap};
+    let mean = |c: [f32; 3]| c.iter().map(|&v| untonemap(v)).sum::<f32>() / 3.0;
+    let lit = mean([0, 1, 2].map(|k| base[k] + d[k]));
+    let g = (lit + GAIN_EPS).ln() - (mean(base) + GAIN_EPS).ln();
+    base.map(|b| tonemap(untonemap(b) * (w * g).exp()))
 }
 
 /// f at pixel `p` from the network input (planar CHW): max over RGB of

@@ -36,6 +36,15 @@ pub struct NetConfig {
     /// ratio's, exactly. 0: none.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub gate: f32,
+    /// Gain (base ratio only; `model.py`): on covered pixels the diffuse correction becomes a
+    /// gain on the ratio image that keeps its colour ([`crate::frame::output::gained`]).
+    /// false: additive corrections.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub gain: bool,
+}
+
+fn is_false(x: &bool) -> bool {
+    !*x
 }
 
 fn is_zero(x: &f32) -> bool {
@@ -73,6 +82,7 @@ impl NetConfig {
             base: NetBase::None,
             shrink: 0.0,
             gate: 0.0,
+            gain: false,
         }
     }
 }
@@ -142,6 +152,12 @@ impl SafetensorsParams {
                     ),
                 ));
             }
+        }
+        if cfg.gain && cfg.base != NetBase::Ratio {
+            return Err(Error::input(
+                path,
+                "metadata \"relit.net\": gain must be false unless base is \"ratio\"",
+            ));
         }
         Ok((
             SafetensorsParams {
