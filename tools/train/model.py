@@ -32,7 +32,7 @@ Structure (W = width):
                    the gate, multiplies untm(B): the diffuse image is tm(untm(B)·exp(w·g)). A
                    network can then brighten or darken what ratio shows, not tint it (a
                    trained network's corrections carried one warm cast into every room,
-                   whatever colour the lamp; session 21). false (default): additive corrections.
+                   whatever colour the lamp; session 19). false (default): additive corrections.
 
 Choices where the paper is silent (documented in the README): no activation after the
 downsampling convs, the input conv is linear, the output conv is linear with a bias.

@@ -256,6 +256,18 @@ class TrainerTest(unittest.TestCase):
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertIs(M.load(out).config["gain"], True)
         self.assertNotIn("gain", M.parameters_of(M.load(out).config))
+        # A run trained through the gain keeps it, and is resumed only with it.
+        run = self.run_dir("gain-trained")
+        r = train(self.data, run, "--steps", "1", "--base", "ratio", "--gain")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIs(M.load(os.path.join(run, "weights.safetensors")).config["gain"], True)
+        r = train(self.data, run, "--steps", "2", "--base", "ratio", "--resume")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("--gain", r.stderr)
+        r = train(self.data, self.run_dir("gain-no-base"), "--steps", "1", "--base", "none",
+                  "--gain")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("--base ratio", r.stderr)
 
     def test_a_signal_stops_the_run_at_a_checkpoint_that_resumes(self):
         run = self.run_dir("signal")

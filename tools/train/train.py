@@ -302,6 +302,9 @@ def parse_args():
     ap.add_argument("--gate", type=float, default=0.0, metavar="G",
                     help="base ratio: scale corrections by min(1, new light's share / G) on "
                          "covered pixels, so that where no lamp reaches the image is ratio's (0: off)")
+    ap.add_argument("--gain", action="store_true",
+                    help="base ratio: the diffuse correction as a gain on the ratio image that "
+                         "keeps its colour on covered pixels (model.py's gain)")
     ap.add_argument("--vgg", type=float, default=0.1, help="λ_vgg of the perceptual terms (0: off)")
     ap.add_argument("--multiview", type=float, default=1.0,
                     help="weight of the multi-view consistency term (0: off)")
@@ -400,6 +403,14 @@ class Dist:
         if self.world > 1:
             self.dist.barrier()
 
+    def close(self):
+        """Every process waits for the others, then tears the process group down: a process
+        that exits with gloo's threads still running aborts ("terminate called without an
+        active exception"), which torchrun reports as a failed run."""
+        if self.world > 1:
+            self.dist.barrier()
+            self.dist.destroy_process_group()
+
 
 def step_loss(a, net, disc, vgg, train, nbr, warps, i, lighting, rng, row):
     """The generator's loss of one step (eq. 8–12 as switched on) and the discriminator's input."""
@@ -449,6 +460,8 @@ def main():
                  "ratio image)")
     if a.gate and a.base != "ratio":
         sys.exit("--gate needs --base ratio (it scales the corrections to the ratio image)")
+    if a.gain and a.base != "ratio":
+        sys.exit("--gain needs --base ratio (it is a gain on the ratio image)")
     if a.threads:
         torch.set_num_threads(a.threads)
     torch.use_deterministic_algorithms(True)
@@ -468,7 +481,8 @@ def main():
     # The same initial weights in every process; the data each draws differs.
     torch.manual_seed(a.seed)
     net = M.RelightNet(width=a.width, trunk_blocks=a.trunk_blocks, level_blocks=a.level_blocks,
-                       tail_blocks=a.tail_blocks, base=a.base, gate=a.gate).to(a.device)
+                       tail_blocks=a.tail_blocks, base=a.base, gate=a.gate,
+                       gain=a.gain).to(a.device)
     opt = torch.optim.RMSprop(net.parameters(), lr=a.lr)
     disc = A.Discriminator().to(a.device) if a.adv > 0 else None
     opt_d = torch.optim.RMSprop(disc.parameters(), lr=a.lr) if disc is not None else None
@@ -493,7 +507,7 @@ def main():
                      "(--vgg, --multiview, --adv, torchrun processes)")
         if M.full_config(c["config"]) != net.config:
             sys.exit(f"{ckpt}: network {c['config']} differs from {net.config} "
-                     "(--width, --*-blocks, --base, --gate)")
+                     "(--width, --*-blocks, --base, --gate, --gain)")
         net.load_state_dict(c["model"])
         opt.load_state_dict(c["optimizer"])
         if disc is not None:
@@ -580,13 +594,13 @@ def main():
             checkpoint()
             last_ckpt = time.time()
     checkpoint()
-    if not lead:
-        return
-    log.close()
-    save_weights(net, os.path.join(a.out, "weights.safetensors"))
-    plot(a.out)
-    print(f"{a.out}: step {step}, {len(train)} training and {len(val)} validation samples, "
-          f"{dd.world} process(es)")
+    if lead:
+        log.close()
+        save_weights(net, os.path.join(a.out, "weights.safetensors"))
+        plot(a.out)
+        print(f"{a.out}: step {step}, {len(train)} training and {len(val)} validation samples, "
+              f"{dd.world} process(es)")
+    dd.close()
 
 
 if __name__ == "__main__":
