@@ -441,21 +441,28 @@ fn leave_one_out_excludes_the_view_from_every_pass() {
 /// network run separately on the frame's own input tensor, for both bases (the ratio base is
 /// formed from that input by `output::ratio_base`, as `model.py` forms it), with `shrink`, and
 /// with `gate` under a dimmed original light and a lamp (the lamp's share of the light, 0.3–0.5,
-/// below the gate's 1: every correction scaled), and with `gain` alone and gated.
+/// below the gate's 1: every correction scaled), with `gain` alone and gated, and with `agree`
+/// alone and with the gate and gain (the check that each option changes the image keeps the
+/// cases honest).
 #[test]
 fn network_mode_output_matches_network_on_the_frame_input() {
+    // The tiny scene's views agree closely (D's quartiles ~3e-6, 2e-4, 7e-4; largest 0.016):
+    // at this A about two thirds of the covered pixels' corrections are scaled down.
+    const AGREE: f32 = 5e-4;
     let gpu = common::gpu();
     let t = tiny();
-    for (storage, base, shrink, gate, gain) in [
-        (Storage::F32, NetBase::None, 0.0, 0.0, false),
-        (Storage::F16, NetBase::None, 0.0, 0.0, false),
-        (Storage::F32, NetBase::Ratio, 0.0, 0.0, false),
-        (Storage::F16, NetBase::Ratio, 0.0, 0.0, false),
-        (Storage::F32, NetBase::Ratio, 0.02, 0.0, false),
-        (Storage::F32, NetBase::Ratio, 0.0, 1.0, false),
-        (Storage::F16, NetBase::Ratio, 0.02, 1.0, false),
-        (Storage::F32, NetBase::Ratio, 0.0, 0.0, true),
-        (Storage::F32, NetBase::Ratio, 0.0, 1.0, true),
+    for (storage, base, shrink, gate, gain, agree) in [
+        (Storage::F32, NetBase::None, 0.0, 0.0, false, 0.0),
+        (Storage::F16, NetBase::None, 0.0, 0.0, false, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.0, 0.0, false, 0.0),
+        (Storage::F16, NetBase::Ratio, 0.0, 0.0, false, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.02, 0.0, false, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.0, 1.0, false, 0.0),
+        (Storage::F16, NetBase::Ratio, 0.02, 1.0, false, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.0, 0.0, true, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.0, 1.0, true, 0.0),
+        (Storage::F32, NetBase::Ratio, 0.0, 0.0, false, AGREE),
+        (Storage::F16, NetBase::Ratio, 0.0, 1.0, true, AGREE),
     ] {
         let lights = if gate > 0.0 { &t.lights[..] } else { &[] };
         let scene =
@@ -467,6 +474,7 @@ fn network_mode_output_matches_network_on_the_frame_input() {
         cfg.shrink = shrink;
         cfg.gate = gate;
         cfg.gain = gain;
+        cfg.agree = agree;
         let mk = || {
             Network::from_params(
                 NetKernels::new(&gpu, storage).unwrap(),
@@ -490,16 +498,26 @@ fn network_mode_output_matches_network_on_the_frame_input() {
             .unwrap();
         let b = r.buffers_ref().unwrap();
         let (w, h) = (t.novel.width, t.novel.height);
-        let npix = (w * h) as usize;
         let input = b.input.download_chw().unwrap();
         let has = surface_mask(b);
         let out = mk().run(&input, h, w).unwrap();
         let ratio_in = (base == NetBase::Ratio).then_some(&input[..]);
-        let c = output::Corrections { shrink, gate, gain };
-        let want = output::reference_network(&out, ratio_in, c, npix, &has);
-        if c != output::Corrections::default() {
-            let plain = output::reference_network(&out, ratio_in, Default::default(), npix, &has);
-            assert!(want != plain, "{c:?} changed nothing: not a test of them");
+        let c = output::Corrections {
+            shrink,
+            gate,
+            gain,
+            agree,
+        };
+        let want = output::reference_network(&out, ratio_in, c, w as usize, &has);
+        let without_agree = output::Corrections { agree: 0.0, ..c };
+        for other in [output::Corrections::default(), without_agree] {
+            if c != other {
+                let plain = output::reference_network(&out, ratio_in, other, w as usize, &has);
+                assert!(
+                    want != plain,
+                    "{c:?} against {other:?} changed nothing: not a test"
+                );
+            }
         }
         assert_close(
             &r.hdr().unwrap(),

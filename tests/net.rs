@@ -185,8 +185,10 @@ fn network_matches_pytorch_golden() {
 /// input) turns the raw golden output into the image PyTorch composes (`model.py`: the ratio
 /// base added to O_d), within 1e-4 of the image's scale, without `shrink` or `gate`, with the
 /// golden's shrink (every correction soft-thresholded), with its gate (every correction scaled
-/// by the input's change of lighting) and with the gate and `gain` (the diffuse correction a gain
-/// on the base); the GPU output pass is held to that reference by tests/frame.rs.
+/// by the input's change of lighting), with the gate and `gain` (the diffuse correction a gain
+/// on the base) and with those and `agree` (every correction scaled by the input views'
+/// disagreement, on an input with holes); the GPU output pass is held to that reference by
+/// tests/frame.rs.
 #[test]
 fn ratio_base_matches_pytorch_golden() {
     use relit_engine::frame::output::{reference_network, Corrections};
@@ -194,21 +196,27 @@ fn ratio_base_matches_pytorch_golden() {
     let io = std::fs::read(dir.join("net_w12r.io.safetensors")).unwrap();
     let (_, meta) = safetensors::SafeTensors::read_metadata(&io).unwrap();
     let value = |k: &str| -> f32 { meta.metadata().as_ref().unwrap()[k].parse().unwrap() };
-    let (shrink, gate) = (value("shrink"), value("gate"));
-    assert!(shrink > 0.0 && gate > 0.0);
+    let (shrink, gate, agree) = (value("shrink"), value("gate"), value("agree"));
+    assert!(shrink > 0.0 && gate > 0.0 && agree > 0.0);
     let st = safetensors::SafeTensors::deserialize(&io).unwrap();
     let (_, x, y, shape) = golden("net_w12r");
     let npix = shape[1] * shape[2];
     let untm = relit_engine::frame::features::untonemap;
-    let c = |shrink, gate, gain| Corrections { shrink, gate, gain };
+    let c = |shrink, gate, gain, agree| Corrections {
+        shrink,
+        gate,
+        gain,
+        agree,
+    };
     for (key, options) in [
-        ("image", c(0.0, 0.0, false)),
-        ("image_shrink", c(shrink, 0.0, false)),
-        ("image_gate", c(0.0, gate, false)),
-        ("image_gain", c(0.0, gate, true)),
+        ("image", c(0.0, 0.0, false, 0.0)),
+        ("image_shrink", c(shrink, 0.0, false, 0.0)),
+        ("image_gate", c(0.0, gate, false, 0.0)),
+        ("image_gain", c(0.0, gate, true, 0.0)),
+        ("image_agree", c(0.0, gate, true, agree)),
     ] {
         let image: Vec<f32> = bytemuck::pod_collect_to_vec(st.tensor(key).unwrap().data());
-        let got = reference_network(&y, Some(&x), options, npix, &vec![true; npix]);
+        let got = reference_network(&y, Some(&x), options, shape[2], &vec![true; npix]);
         let want: Vec<f32> = (0..3)
             .flat_map(|k| (0..npix).map(move |p| (k, p)))
             .map(|(k, p)| untm(image[k * npix + p] + image[(k + 3) * npix + p]))

@@ -14,7 +14,9 @@
 // Its shrink τ soft-thresholds each correction where I_1 (the input's channels 0–2) is not black;
 // its gate G then scales it there by min(1, f / G), f = max over RGB of E_add / (E_src − E_rem +
 // E_add), the new light's share: where no lamp reaches, the image is ratio's exactly. Its gain
-// turns the diffuse correction there into a gain on the base that keeps the base's colour.
+// turns the diffuse correction there into a gain on the base that keeps the base's colour. Its
+// agreement A scales each correction there also by min(1, D / A), D the input views'
+// disagreement around the pixel (`disagreement` below): where the views agree, ratio's image.
 #extension GL_EXT_scalar_block_layout : require
 #include "act_storage.glsl"
 #include "camera.glsl"
@@ -38,6 +40,7 @@ layout(push_constant, scalar) uniform Push {
     float shrink;    // NetConfig::shrink (0: none)
     float gate;      // NetConfig::gate (0: none)
     uint gain;       // NetConfig::gain (1: the diffuse correction is a gain on the base)
+    float agree;     // NetConfig::agree (0: none)
     uint norig;      // declared original lights (emitters.glsl)
     float alpha_dim; // §4.1.4: 0 keeps the original lighting, 1 removes it
 } pc;
@@ -87,10 +90,47 @@ vec3 gained(vec3 b, vec3 d, float w) {
     return tm(lb * exp(w * g));
 }
 
+// The RGB mean of |I_k − I_1| (input channels 0–23, tonemapped, pack4 groups 0–5) averaged
+// over the layers k = 2..8 that cover pixel q together with I_1; 0 where none does.
+float pixel_disagreement(uint q, uint npix) {
+    float c[24];
+    for (uint g = 0u; g < 6u; g++) {
+        vec4 v = vec4(x[g * npix + q]);
+        c[4u * g] = v.x; c[4u * g + 1u] = v.y; c[4u * g + 2u] = v.z; c[4u * g + 3u] = v.w;
+    }
+    vec3 i1 = vec3(c[0], c[1], c[2]);
+    if (all(equal(i1, vec3(0.0)))) return 0.0;
+    float sum = 0.0, n = 0.0;
+    for (uint k = 1u; k < 8u; k++) {
+        vec3 ik = vec3(c[3u * k], c[3u * k + 1u], c[3u * k + 2u]);
+        if (any(notEqual(ik, vec3(0.0)))) {
+            vec3 d = abs(ik - i1);
+            sum += (d.r + d.g + d.b) / 3.0;
+            n += 1.0;
+        }
+    }
+    return n > 0.0 ? sum / n : 0.0;
+}
+
+// D of `agree`: pixel_disagreement under the 5×5 binomial filter [1 4 6 4 1]/16 (separable,
+// σ = 1 px), edge pixels repeated (model.py `disagreement`, output.rs).
+float disagreement(ivec2 xy, uint npix) {
+    const float W[5] = float[5](1.0, 4.0, 6.0, 4.0, 1.0);
+    float d = 0.0;
+    for (int j = 0; j < 5; j++) {
+        int cy = clamp(xy.y + j - 2, 0, int(pc.height) - 1);
+        for (int i = 0; i < 5; i++) {
+            int cx = clamp(xy.x + i - 2, 0, int(pc.width) - 1);
+            d += W[i] * W[j] * pixel_disagreement(uint(cy) * pc.width + uint(cx), npix);
+        }
+    }
+    return d / 256.0;
+}
+
 // Network mode's image: O_d + O_v, and with base "ratio" the ratio base plus the corrections,
 // soft-thresholded and gated on covered pixels. A closed gate leaves ratio's own image (not its
 // round trip through the input tensor, which fp16 storage rounds).
-vec3 network_image(uint p, uint npix) {
+vec3 network_image(uint p, ivec2 xy, uint npix) {
     vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
     vec3 od = a.xyz, ov = vec3(a.w, b.x, b.y);
     if (pc.base == 1u) {
@@ -98,6 +138,7 @@ vec3 network_image(uint p, uint npix) {
         bool covered = any(notEqual(vec4(x[p]).xyz, vec3(0.0)));
         float t = covered ? pc.shrink : 0.0;
         float w = covered && pc.gate > 0.0 ? min(new_light_share(e) / pc.gate, 1.0) : 1.0;
+        if (covered && pc.agree > 0.0 && w > 0.0) w *= min(disagreement(xy, npix) / pc.agree, 1.0);
         if (w == 0.0) return ratio_image(p, npix);
         vec3 b = ratio_base(p, e);
         od = soft_threshold(od, t);
@@ -122,7 +163,7 @@ void main() {
     bool hole = all(equal(vec3(comp[p].rgb), vec3(0.0)));
     if (xp.w > 0.0) {
         if (pc.mode == MODE_NETWORK || (pc.mode == MODE_RATIO_FILLED && hole)) {
-            c = network_image(p, npix);
+            c = network_image(p, xy, npix);
         } else if (pc.mode == MODE_ULR) {
             c = vec3(comp[p].rgb);
         } else {

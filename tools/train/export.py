@@ -2,7 +2,7 @@
 weights file (`relit render --weights W`) and the run's curves.png.
 
     python tools/train/export.py RUN|W [--out W] [--dtype f16|f32] [--average W1 ...] [--shrink T]
-        [--gate G] [--gain]
+        [--gate G] [--gain] [--agree A]
 
 RUN is a run directory (its checkpoint is exported), W weights a run kept along the way
 (`train.py --save-every`).
@@ -25,6 +25,10 @@ light, so that where no lamp reaches the image is ratio's exactly.
 
 `--gain` makes the exported network's diffuse correction a gain on the ratio image that keeps
 its colour (model.py's `gain`, base "ratio" only).
+
+`--agree A` scales each correction on a covered pixel also by min(1, D / A), D the input views'
+disagreement (model.py's `agree`, base "ratio" only): where the reprojected views agree, the
+image is ratio's. Choose A on the validation rooms.
 """
 
 import argparse
@@ -90,11 +94,11 @@ def with_option(net, key, value):
     net.config = cfg
 
 
-def export(run, out, dtype, average=(), shrink=None, gate=None, gain=None):
+def export(run, out, dtype, average=(), shrink=None, gate=None, gain=None, agree=None):
     net, trained = load_base(run)
     if average:
         trained["averaged_with"] = average_into(net, average)
-    for key, value in (("shrink", shrink), ("gate", gate), ("gain", gain)):
+    for key, value in (("shrink", shrink), ("gate", gate), ("gain", gain), ("agree", agree)):
         if value is not None:
             with_option(net, key, value)
     tmp = out + ".tmp"
@@ -119,11 +123,13 @@ def main():
                     help="scale corrections by min(1, new light's share / G) (base ratio)")
     ap.add_argument("--gain", action="store_const", const=True,
                     help="the diffuse correction as a colour-keeping gain on the ratio image")
+    ap.add_argument("--agree", type=float, metavar="A",
+                    help="scale corrections by min(1, input views' disagreement / A) (base ratio)")
     a = ap.parse_args()
     if not a.out and not os.path.isdir(a.run):
         sys.exit("--out is needed when exporting a weights file")
     out = a.out or os.path.join(a.run, "weights.safetensors")
-    step = export(a.run, out, a.dtype, a.average, a.shrink, a.gate, a.gain)
+    step = export(a.run, out, a.dtype, a.average, a.shrink, a.gate, a.gain, a.agree)
     print(f"{out}: step {step}, {os.path.getsize(out) / 1e6:.1f} MB ({a.dtype})"
           + (f", averaged with {', '.join(a.average)}" if a.average else ""))
 

@@ -9,7 +9,10 @@ convs) and a random input, with the PyTorch output computed in float64.
 pass must reproduce from the raw output and the input (`frame::output::reference_network`),
 "image_shrink": the same with `shrink` τ = SHRINK (the file's metadata "shrink"), and
 "image_gate": the same with `gate` G = GATE (metadata "gate"), no shrink, and "image_gain": the
-same with the gate and `gain` (its diffuse correction a colour-keeping gain on the ratio image).
+same with the gate and `gain` (its diffuse correction a colour-keeping gain on the ratio image),
+and "image_agree": the same with the gate, the gain and `agree` A = AGREE (metadata "agree"). Its
+input has holes: each of the layers I_2..I_8 is black at a fifth of the pixels and I_1 at a
+twentieth, so the disagreement's count of layers varies.
 
 and, whenever the shipped weights change, the output of the trained network built into relit
 (engine/weights/relit.safetensors) on a random input, with the weights' metadata copied so that
@@ -42,6 +45,18 @@ SHRINK = 0.05
 # The gate of "image_gate": against the random input's new-light share f (its E_rem may exceed
 # E_src, so f spreads over 0.5–1e4), about a quarter of the corrections are scaled down.
 GATE = 2.0
+# The agreement of "image_agree": the random layers' disagreement is ~1/3 (blurred: 0.2–0.45), so
+# most corrections are scaled down.
+AGREE = 0.4
+
+
+def with_holes(x, gen):
+    """x with I_2..I_8 black at a fifth of the pixels each and I_1 at a twentieth."""
+    n, _, h, w = x.shape
+    for k in range(8):
+        black = torch.rand((n, 1, h, w), generator=gen, dtype=x.dtype) < (0.05 if k == 0 else 0.2)
+        x[:, 3 * k:3 * k + 3] = torch.where(black, torch.zeros_like(x[:, :3]), x[:, 3 * k:3 * k + 3])
+    return x
 
 
 def randomize(net, gen):
@@ -70,6 +85,8 @@ def main(out, names=()):
         net = M.load(out / f"{name}.safetensors").double()
         h, w = case["size"]
         x = torch.rand((1, net.config["in_channels"], h, w), generator=gen, dtype=torch.float64)
+        if net.config["base"] != "none":
+            x = with_holes(x, gen)
         with torch.no_grad():
             y, image = net.raw(x), net(x)
         io = {"input": x[0].float().contiguous(), "output": y[0].float().contiguous()}
@@ -87,10 +104,15 @@ def main(out, names=()):
             net.config["gain"] = True
             with torch.no_grad():
                 io["image_gain"] = net(x)[0].float().contiguous()
-            net.config["gate"], net.config["gain"] = 0.0, False
-            print(f"{name}: gate weights {float(w.min()):.3f}..{float(w.max()):.3f}, "
-                  f"{float((w < 1).float().mean()) * 100:.0f}% below 1")
-            meta = {"shrink": str(SHRINK), "gate": str(GATE)}
+            net.config["agree"] = AGREE
+            with torch.no_grad():
+                io["image_agree"] = net(x)[0].float().contiguous()
+                a = M.agreement_weight(x, AGREE)
+            net.config["gate"], net.config["gain"], net.config["agree"] = 0.0, False, 0.0
+            for what, v in (("gate", w), ("agreement", a)):
+                print(f"{name}: {what} weights {float(v.min()):.3f}..{float(v.max()):.3f}, "
+                      f"{float((v < 1).float().mean()) * 100:.0f}% below 1")
+            meta = {"shrink": str(SHRINK), "gate": str(GATE), "agree": str(AGREE)}
         save_file(io, out / f"{name}.io.safetensors", metadata=meta)
         print(name, tuple(y.shape), float(y.abs().max()))
 

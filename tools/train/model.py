@@ -33,6 +33,14 @@ Structure (W = width):
                    network can then brighten or darken what ratio shows, not tint it (a
                    trained network's corrections carried one warm cast into every room,
                    whatever colour the lamp; session 19). false (default): additive corrections.
+  agree          : A ≥ 0 (base "ratio" only): on covered pixels each correction is also scaled by
+                   min(1, D / A), D the input views' disagreement (`disagreement`): where the
+                   reprojected views I_2..I_8 match I_1 the proxy puts every view's pixel on the
+                   same surface point and the surface looks the same from each, which is where
+                   eq. 5's ratio image is right; the corrections act where the views disagree
+                   (a wrong proxy, view-dependent shading). A network trained on rooms with
+                   inexact proxies corrected the edges of a room whose proxy was exact (session
+                   22); this leaves such a room to ratio. 0 (default): no agreement scaling.
 
 Choices where the paper is silent (documented in the README): no activation after the
 downsampling convs, the input conv is linear, the output conv is linear with a bias.
@@ -49,7 +57,7 @@ import torch.nn.functional as F
 
 DEFAULT_CONFIG = dict(in_channels=66, width=66, trunk_blocks=4, levels=5, level_blocks=4,
                       tail_blocks=2, out_channels=6, base="none", shrink=0.0,
-                      gate=0.0, gain=False)
+                      gate=0.0, gain=False, agree=0.0)
 BASES = ("none", "ratio")
 from constants import E_FLOOR as _E_FLOOR, GAIN_EPS, MU
 
@@ -70,18 +78,18 @@ def untm(y):
 
 def full_config(cfg):
     """A configuration with every key: checkpoints and files written before a key existed
-    (base, shrink, gate, gain) hold its default."""
+    (base, shrink, gate, gain, agree) hold its default."""
     return dict(DEFAULT_CONFIG, **cfg)
 
 
 def parameters_of(cfg):
-    """The keys of a configuration that decide the parameters (not shrink, gate or gain, which
-    act on the output): two networks with equal ones can load each other's weights."""
+    """The keys of a configuration that decide the parameters (not the OUTPUT_KEYS, which act
+    on the output): two networks with equal ones can load each other's weights."""
     return {k: v for k, v in full_config(cfg).items() if k not in OUTPUT_KEYS}
 
 
 # The configuration keys that act on the output only.
-OUTPUT_KEYS = ("shrink", "gate", "gain")
+OUTPUT_KEYS = ("shrink", "gate", "gain", "agree")
 
 
 def soft_threshold(c, tau):
@@ -119,6 +127,31 @@ def log_gain(base, cd):
     a = untm(base + cd).mean(1, keepdim=True)
     b = untm(base).mean(1, keepdim=True)
     return torch.log(a + GAIN_EPS) - torch.log(b + GAIN_EPS)
+
+
+# The 5-tap binomial filter (σ = 1 px) that smooths the disagreement, clamped at the image's edges
+# (output.glsl and output.rs apply the same).
+BINOMIAL5 = (1 / 16, 4 / 16, 6 / 16, 4 / 16, 1 / 16)
+
+
+def disagreement(x):
+    """N×1×H×W: D of `agree`. At each pixel, the mean over the layers k = 2..8 that cover it
+    together with I_1 of the RGB mean of |I_k − I_1| (tonemapped input channels), 0 where none
+    does; then BINOMIAL5 across rows and columns, edge pixels repeated."""
+    n, _, h, w = x.shape
+    layers = x[:, :24].reshape(n, 8, 3, h, w)
+    seen = (layers != 0).any(2)
+    both = (seen[:, 1:] & seen[:, :1]).to(x.dtype)
+    d = (layers[:, 1:] - layers[:, :1]).abs().mean(2)
+    per_pixel = (d * both).sum(1, keepdim=True) / both.sum(1, keepdim=True).clamp(min=1)
+    k = torch.tensor(BINOMIAL5, dtype=x.dtype, device=x.device)
+    rows = F.conv2d(F.pad(per_pixel, (2, 2, 0, 0), mode="replicate"), k.view(1, 1, 1, 5))
+    return F.conv2d(F.pad(rows, (0, 0, 2, 2), mode="replicate"), k.view(1, 1, 5, 1))
+
+
+def agreement_weight(x, a):
+    """N×1×H×W: min(1, D / A) on covered pixels, 1 in the holes (`agree`)."""
+    return torch.where(covered(x), (disagreement(x) / a).clamp(max=1.0), torch.ones_like(x[:, :1]))
 
 
 def gate_weight(x, g):
@@ -161,14 +194,11 @@ class RelightNet(nn.Module):
         c.update(cfg)
         if c["base"] not in BASES:
             raise ValueError(f"base {c['base']!r}: expected one of {BASES}")
-        if not (c["shrink"] >= 0 and math.isfinite(c["shrink"])):
-            raise ValueError(f"shrink {c['shrink']!r}: expected a finite value >= 0")
-        if c["shrink"] > 0 and c["base"] != "ratio":
-            raise ValueError("shrink applies to a network with base \"ratio\" only")
-        if not (c["gate"] >= 0 and math.isfinite(c["gate"])):
-            raise ValueError(f"gate {c['gate']!r}: expected a finite value >= 0")
-        if c["gate"] > 0 and c["base"] != "ratio":
-            raise ValueError("gate applies to a network with base \"ratio\" only")
+        for key in ("shrink", "gate", "agree"):
+            if not (c[key] >= 0 and math.isfinite(c[key])):
+                raise ValueError(f"{key} {c[key]!r}: expected a finite value >= 0")
+            if c[key] > 0 and c["base"] != "ratio":
+                raise ValueError(f"{key} applies to a network with base \"ratio\" only")
         if c["gain"] not in (False, True):
             raise ValueError(f"gain {c['gain']!r}: expected false or true")
         c["gain"] = bool(c["gain"])
@@ -198,6 +228,8 @@ class RelightNet(nn.Module):
                 cd = torch.where(seen, soft_threshold(cd, tau), cd)
                 cv = torch.where(seen, soft_threshold(cv, tau), cv)
             w = gate_weight(x, self.config["gate"]) if self.config["gate"] > 0 else 1.0
+            if self.config["agree"] > 0:
+                w = w * agreement_weight(x, self.config["agree"])
             base = ratio_base(x)
             diffuse = base + w * cd
             if self.config["gain"]:
@@ -248,6 +280,8 @@ def save(model, path, dtype=torch.float32, trained=None):
         del cfg["gate"]  # likewise
     if not cfg["gain"]:
         del cfg["gain"]  # likewise
+    if cfg["agree"] == 0:
+        del cfg["agree"]  # likewise
     meta = {"relit.net": json.dumps(cfg, sort_keys=True)}
     if trained is not None:
         meta["relit.trained"] = json.dumps(trained, sort_keys=True)

@@ -269,6 +269,39 @@ class TrainerTest(unittest.TestCase):
         self.assertNotEqual(r.returncode, 0)
         self.assertIn("--base ratio", r.stderr)
 
+    def test_agreeing_views_leave_ratio_and_disagreeing_ones_pass_the_corrections(self):
+        sys.path.insert(0, HERE)
+        import torch
+        import model as M
+        net = M.RelightNet(width=8, trunk_blocks=1, level_blocks=1, tail_blocks=1, base="ratio",
+                           agree=0.1).double()
+        x = torch.rand(1, net.config["in_channels"], 16, 16, dtype=torch.float64) * 0.5 + 0.25
+        x[:, 3:24] = x[:, 0:3].repeat(1, 7, 1, 1)  # I_2..I_8 equal I_1: every view agrees
+        x[:, 3:6, :, 8:] += 0.2                      # but I_2 differs on the right half
+        x[:, 6:24, :, 8:] = 0                        # where I_3..I_8 do not cover
+        with torch.no_grad():
+            net.out_conv.bias.copy_(torch.tensor([0.2, -0.1, 0.05, 0.1, 0.1, 0.1]))
+        d = M.disagreement(x)[0, 0]
+        self.assertLess(d[:, :6].abs().max().item(), 1e-12)         # blur reaches 2 px
+        self.assertTrue(torch.allclose(d[:, 10:], torch.full_like(d[:, 10:], 0.2)))
+        out, base = net(x), M.ratio_base(x)
+        self.assertTrue(torch.allclose(out[:, :3, :, :6], base[:, :, :, :6]))   # ratio's image
+        self.assertLess(out[:, 3:, :, :6].abs().max().item(), 1e-12)
+        cd = net.out_conv.bias.view(1, 6, 1, 1)
+        self.assertTrue(torch.allclose(out[:, :3, :, 10:], base[:, :, :, 10:] + cd[:, :3]))
+        self.assertTrue(torch.allclose(out[:, 3:, :, 10:], cd[:, 3:].expand(1, 3, 16, 6)))
+        with self.assertRaises(ValueError):
+            M.RelightNet(width=8, agree=0.1)     # base none: nothing to scale
+        run = self.run_dir("agree")
+        r = train(self.data, run, "--steps", "1", "--base", "ratio")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        out = os.path.join(run, "agree.safetensors")
+        r = subprocess.run([sys.executable, os.path.join(HERE, "export.py"), run, "--out", out,
+                            "--agree", "0.03"], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(M.load(out).config["agree"], 0.03)
+        self.assertNotIn("agree", M.parameters_of(M.load(out).config))
+
     def test_a_signal_stops_the_run_at_a_checkpoint_that_resumes(self):
         run = self.run_dir("signal")
         args = [sys.executable, os.path.join(HERE, "train.py"), "--data", self.data, "--out", run,

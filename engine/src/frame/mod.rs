@@ -843,6 +843,7 @@ impl Renderer {
                 shrink: self.net.as_ref().map_or(0.0, |n| n.config.shrink),
                 gate: self.net.as_ref().map_or(0.0, |n| n.config.gate),
                 gain: self.net.as_ref().is_some_and(|n| n.config.gain) as u32,
+                agree: self.net.as_ref().map_or(0.0, |n| n.config.agree),
                 norig,
                 alpha_dim,
             },

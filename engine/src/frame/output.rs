@@ -25,6 +25,8 @@ pub struct Push {
     pub gate: f32,
     /// [`crate::net::NetConfig::gain`]: 1 on, 0 off.
     pub gain: u32,
+    /// [`crate::net::NetConfig::agree`].
+    pub agree: f32,
     /// Declared original lights (drawn where seen, dimmed).
     pub norig: u32,
     pub alpha_dim: f32,
@@ -49,6 +51,7 @@ pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
         shrink,
         gate,
         gain,
+        agree,
         norig,
         alpha_dim
     ]
@@ -68,30 +71,37 @@ pub fn srgb(x: f32) -> f32 {
 }
 
 /// What a base-"ratio" network's configuration does to its corrections on covered pixels
-/// ([`crate::net::NetConfig`]'s `shrink`, `gate` and `gain`; `model.py`'s output keys).
+/// ([`crate::net::NetConfig`]'s `shrink`, `gate`, `gain` and `agree`; `model.py`'s output keys).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Corrections {
     pub shrink: f32,
     pub gate: f32,
     pub gain: bool,
+    pub agree: f32,
 }
 
-/// CPU reference of network mode: linear RGB per pixel from the 6 output channels (planar CHW),
-/// black where `has_surface` is false. With `ratio_input` (the network's 66-channel input,
-/// planar CHW), the diffuse channels correct [`ratio_base`] (a network with base "ratio"),
-/// each correction soft-thresholded by `shrink`, then scaled by [`gate_weight`] with `gate`,
-/// where I_1 is not black; with `gain` the diffuse correction there becomes a gain on the
-/// base ([`gained`]). (Where the gate is closed the GPU pass takes ratio mode's own
-/// arithmetic, [`reference_ratio`]; this reference's ratio base from the input tensor equals it
-/// up to the tensor's storage precision.)
+/// CPU reference of network mode: linear RGB per pixel from the 6 output channels (planar CHW,
+/// `width` pixels a row), black where `has_surface` is false. With `ratio_input` (the
+/// network's 66-channel input, planar CHW), the diffuse channels correct [`ratio_base`] (a
+/// network with base "ratio"), each correction soft-thresholded by `shrink`, then scaled by
+/// [`gate_weight`] with `gate` and by [`agreement_weights`] with `agree`, where I_1 is not
+/// black; with `gain` the diffuse correction there becomes a gain on the base ([`gained`]).
+/// (Where the scale is 0 the GPU pass takes ratio mode's own arithmetic, [`reference_ratio`];
+/// this reference's ratio base from the input tensor equals it up to the tensor's storage
+/// precision.)
 pub fn reference_network(
     net_out: &[f32],
     ratio_input: Option<&[f32]>,
     c: Corrections,
-    npix: usize,
+    width: usize,
     has_surface: &[bool],
 ) -> Vec<[f32; 3]> {
     use super::features::untonemap;
+    let npix = has_surface.len();
+    let agreement = match ratio_input {
+        Some(x) if c.agree > 0.0 => agreement_weights(x, width, npix / width, c.agree),
+        _ => vec![1.0; npix],
+    };
     (0..npix)
         .map(|p| {
             if !has_surface[p] {
@@ -100,7 +110,7 @@ pub fn reference_network(
             let base = ratio_input.map_or([0.0; 3], |x| ratio_base(x, npix, p));
             let covered = ratio_input.is_some_and(|x| (0..3).any(|k| x[k * npix + p] != 0.0));
             let (t, w) = match ratio_input {
-                Some(x) if covered => (c.shrink, gate_weight(x, npix, p, c.gate)),
+                Some(x) if covered => (c.shrink, gate_weight(x, npix, p, c.gate) * agreement[p]),
                 _ => (0.0, 1.0),
             };
             let d = [0, 1, 2].map(|k| soft_threshold(net_out[k * npix + p], t));
@@ -154,6 +164,60 @@ pub fn gate_weight(x: &[f32], npix: usize, p: usize, gate: f32) -> f32 {
     } else {
         1.0
     }
+}
+
+/// D of `agree` at every pixel of the network input (planar CHW, `width`×`height`): at each
+/// pixel the mean over the layers I_2..I_8 that cover it together with I_1 of the RGB mean of
+/// |I_k − I_1| (channels 0–23, tonemapped), 0 where none does; then the 5-tap binomial filter
+/// [1 4 6 4 1]/16 across rows and columns, edge pixels repeated (`model.py`'s `disagreement`).
+pub fn disagreement(x: &[f32], width: usize, height: usize) -> Vec<f32> {
+    let npix = width * height;
+    let layer = |k: usize, p: usize| [0, 1, 2].map(|c| x[(3 * k + c) * npix + p]);
+    let per_pixel: Vec<f32> = (0..npix)
+        .map(|p| {
+            let i1 = layer(0, p);
+            let (mut sum, mut n) = (0.0, 0.0);
+            for k in 1..8 {
+                let ik = layer(k, p);
+                if i1.iter().any(|&v| v != 0.0) && ik.iter().any(|&v| v != 0.0) {
+                    sum += (0..3).map(|c| (ik[c] - i1[c]).abs()).sum::<f32>() / 3.0;
+                    n += 1.0;
+                }
+            }
+            if n > 0.0 {
+                sum / n
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let rows = binomial5(&per_pixel, width, height, 1, 0);
+    binomial5(&rows, width, height, 0, 1)
+}
+
+/// The 5-tap binomial filter along (dx, dy), clamped at the edges.
+fn binomial5(v: &[f32], width: usize, height: usize, dx: i64, dy: i64) -> Vec<f32> {
+    const W: [f32; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16.0];
+    let at = |x: i64, y: i64| {
+        let (x, y) = (x.clamp(0, width as i64 - 1), y.clamp(0, height as i64 - 1));
+        v[y as usize * width + x as usize]
+    };
+    (0..width * height)
+        .map(|p| {
+            let (x, y) = ((p % width) as i64, (p / width) as i64);
+            (0..5i64)
+                .map(|t| W[t as usize] * at(x + (t - 2) * dx, y + (t - 2) * dy))
+                .sum()
+        })
+        .collect()
+}
+
+/// `agree`'s scale of each pixel's corrections: min(1, D / A), D from [`disagreement`].
+pub fn agreement_weights(x: &[f32], width: usize, height: usize, agree: f32) -> Vec<f32> {
+    disagreement(x, width, height)
+        .into_iter()
+        .map(|d| (d / agree).min(1.0))
+        .collect()
 }
 
 /// sign(c)·max(|c| − τ, 0): a network's correction under `shrink` (`model.py`).

@@ -41,6 +41,12 @@ pub struct NetConfig {
     /// false: additive corrections.
     #[serde(default, skip_serializing_if = "is_false")]
     pub gain: bool,
+    /// Agreement A (base ratio only; `model.py`): on covered pixels a correction is also scaled
+    /// by min(1, D / A), D the input views' disagreement
+    /// ([`crate::frame::output::disagreement`]): where the reprojected views agree the proxy
+    /// is right and the image is ratio's. 0: none.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub agree: f32,
 }
 
 fn is_false(x: &bool) -> bool {
@@ -83,6 +89,7 @@ impl NetConfig {
             shrink: 0.0,
             gate: 0.0,
             gain: false,
+            agree: 0.0,
         }
     }
 }
@@ -143,7 +150,11 @@ impl SafetensorsParams {
                 "metadata \"relit.net\": width, levels, in_channels and out_channels must be > 0",
             ));
         }
-        for (name, v) in [("shrink", cfg.shrink), ("gate", cfg.gate)] {
+        for (name, v) in [
+            ("shrink", cfg.shrink),
+            ("gate", cfg.gate),
+            ("agree", cfg.agree),
+        ] {
             if !(v >= 0.0 && v.is_finite()) || (v > 0.0 && cfg.base != NetBase::Ratio) {
                 return Err(Error::input(
                     path,
