@@ -5,10 +5,10 @@
 # the TV and the window's reflection on the floor, the table, the bed, the shelf; the lamp by the
 # TV switches on, the original light dims to 30%, the lamp moves mid-room and on towards the bed,
 # and the original light returns) to out/demo_room_fly.mp4 in relit's default mode (the one that
-# scores best on rooms never trained on: ratio-filled, eq. 5's ratio rule with the shipped
-# network only in the holes no photo sees, while no trained network meets the floor there;
+# scores best on rooms never trained on: the shipped network, which corrects eq. 5's ratio image
+# where the lamp's light reaches and the photos disagree, and fills the holes no photo sees;
 # README "Evaluation"), and with the ratio rule alone (its holes black) to
-# out/demo_room_fly_ratio.mp4 for comparison. `--mode network` shows the shipped network alone.
+# out/demo_room_fly_ratio.mp4 for comparison.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh

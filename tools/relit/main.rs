@@ -1032,7 +1032,20 @@ fn shipped_network() -> String {
             .map_or(String::new(), |v| format!(", {k} {v}"))
     };
     let base = match net["base"].as_str() {
-        Some(b) => format!(", base {b}{}{}", option("shrink"), option("gate")),
+        Some(b) => {
+            let gain = if net["gain"].as_bool() == Some(true) {
+                ", gain"
+            } else {
+                ""
+            };
+            let opts = format!(
+                "{}{}{gain}{}",
+                option("shrink"),
+                option("gate"),
+                option("agree")
+            );
+            format!(", base {b}{opts}")
+        }
         None => String::new(),
     };
     format!(

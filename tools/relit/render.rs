@@ -21,7 +21,8 @@ pub struct FrameArgs {
     /// `network` (the trained network of §5.1), `ulr` (the I_1 composite, no relighting) or
     /// `ratio` (I_1 relit by eq. 5's pseudo-albedo rule: diffuse relighting without the
     /// network). Default: `network` with --weights, else the mode that scores best on the
-    /// validation rooms (`frame::DEFAULT_MODE`: ratio-filled while no network meets the floor).
+    /// validation rooms and holds on the held-out ones (`frame::DEFAULT_MODE`: network, since the
+    /// shipped network meets the floor; ratio-filled while none did).
     #[arg(long, value_enum)]
     pub mode: Option<ModeArg>,
     /// Which bake to read: the preset's sample counts (default: the complete bake with the most
