@@ -301,6 +301,18 @@ class TrainerTest(unittest.TestCase):
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertEqual(M.load(out).config["agree"], 0.03)
         self.assertNotIn("agree", M.parameters_of(M.load(out).config))
+        # A run trained through the key keeps it, and is resumed only with it.
+        run = self.run_dir("agree-trained")
+        r = train(self.data, run, "--steps", "1", "--base", "ratio", "--agree", "0.03")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(M.load(os.path.join(run, "weights.safetensors")).config["agree"], 0.03)
+        r = train(self.data, run, "--steps", "2", "--base", "ratio", "--resume")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("--agree", r.stderr)
+        r = train(self.data, self.run_dir("agree-no-base"), "--steps", "1", "--base", "none",
+                  "--agree", "0.03")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("--base ratio", r.stderr)
 
     def test_a_signal_stops_the_run_at_a_checkpoint_that_resumes(self):
         run = self.run_dir("signal")

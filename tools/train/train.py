@@ -305,6 +305,10 @@ def parse_args():
     ap.add_argument("--gain", action="store_true",
                     help="base ratio: the diffuse correction as a gain on the ratio image that "
                          "keeps its colour on covered pixels (model.py's gain)")
+    ap.add_argument("--agree", type=float, default=0.0, metavar="A",
+                    help="base ratio: scale corrections by min(1, input views' disagreement / A) "
+                         "on covered pixels, so that where the views agree the image is ratio's "
+                         "(model.py's agree; 0: off)")
     ap.add_argument("--vgg", type=float, default=0.1, help="λ_vgg of the perceptual terms (0: off)")
     ap.add_argument("--multiview", type=float, default=1.0,
                     help="weight of the multi-view consistency term (0: off)")
@@ -462,6 +466,8 @@ def main():
         sys.exit("--gate needs --base ratio (it scales the corrections to the ratio image)")
     if a.gain and a.base != "ratio":
         sys.exit("--gain needs --base ratio (it is a gain on the ratio image)")
+    if a.agree and a.base != "ratio":
+        sys.exit("--agree needs --base ratio (it scales the corrections to the ratio image)")
     if a.threads:
         torch.set_num_threads(a.threads)
     torch.use_deterministic_algorithms(True)
@@ -482,7 +488,7 @@ def main():
     torch.manual_seed(a.seed)
     net = M.RelightNet(width=a.width, trunk_blocks=a.trunk_blocks, level_blocks=a.level_blocks,
                        tail_blocks=a.tail_blocks, base=a.base, gate=a.gate,
-                       gain=a.gain).to(a.device)
+                       gain=a.gain, agree=a.agree).to(a.device)
     opt = torch.optim.RMSprop(net.parameters(), lr=a.lr)
     disc = A.Discriminator().to(a.device) if a.adv > 0 else None
     opt_d = torch.optim.RMSprop(disc.parameters(), lr=a.lr) if disc is not None else None
@@ -507,7 +513,7 @@ def main():
                      "(--vgg, --multiview, --adv, torchrun processes)")
         if M.full_config(c["config"]) != net.config:
             sys.exit(f"{ckpt}: network {c['config']} differs from {net.config} "
-                     "(--width, --*-blocks, --base, --gate, --gain)")
+                     "(--width, --*-blocks, --base, --gate, --gain, --agree)")
         net.load_state_dict(c["model"])
         opt.load_state_dict(c["optimizer"])
         if disc is not None:
