@@ -104,7 +104,8 @@ fn dataset_builds_resumes_and_its_samples_mix_any_lighting_as_the_engine_does() 
     );
 
     // The trainer's assembly of a lighting equals the engine's frame under that lighting, on
-    // a novel camera and on an input view (left out of its own inputs in both).
+    // a novel camera and on an input view (left out of its own inputs in both): the input,
+    // the targets, the drawn lights and glossy mode's image.
     add_mix_preset(&scene);
     let s = scene.to_str().unwrap();
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/train/samples.py");
@@ -129,6 +130,11 @@ fn dataset_builds_resumes_and_its_samples_mix_any_lighting_as_the_engine_does() 
         assert!(
             text.contains("drawn original lights"),
             "{cam}: drawn lights not compared:\n{text}"
+        );
+        // Glossy mode's image (a glossy-base network's base) mixes from its parts too.
+        assert!(
+            text.contains("glossy_image"),
+            "{cam}: glossy mode's image not compared:\n{text}"
         );
     }
 }

@@ -1,4 +1,4 @@
-//! The README's examples of every format a person writes by hand (the JSON blocks marked
+//! The examples in docs/formats.md of every format a person writes by hand (the JSON blocks marked
 //! `<!-- checked: KIND -->`) load with the engine's own loaders, so the documentation cannot drift
 //! from what the code accepts.
 
@@ -13,9 +13,9 @@ use relit_engine::scene::{write_scene, CameraDoc, Scene, SceneFormat};
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-/// The README's checked examples: (kind, JSON text).
+/// The checked examples of docs/formats.md: (kind, JSON text).
 fn examples() -> Vec<(String, String)> {
-    let text = std::fs::read_to_string(Path::new(ROOT).join("README.md")).unwrap();
+    let text = std::fs::read_to_string(Path::new(ROOT).join("docs/formats.md")).unwrap();
     let mut out = Vec::new();
     let mut lines = text.lines();
     while let Some(l) = lines.next() {
@@ -40,11 +40,11 @@ fn example(kind: &str) -> String {
     examples()
         .into_iter()
         .find(|(k, _)| k == kind)
-        .unwrap_or_else(|| panic!("README has no checked {kind} example"))
+        .unwrap_or_else(|| panic!("docs/formats.md has no checked {kind} example"))
         .1
 }
 
-/// A scene directory for the README's scene.json: its mesh (the tiny room's) and images of the
+/// A scene directory for the example scene.json: its mesh (the tiny room's) and images of the
 /// cameras' sizes at the paths it names.
 fn scene_dir(name: &str) -> PathBuf {
     let dir = common::tempdir(name);
@@ -76,7 +76,7 @@ fn scene_dir(name: &str) -> PathBuf {
 }
 
 #[test]
-fn readme_has_every_checked_example() {
+fn formats_doc_has_every_checked_example() {
     let kinds: Vec<String> = examples().into_iter().map(|(k, _)| k).collect();
     assert_eq!(
         kinds,
@@ -91,7 +91,7 @@ fn readme_has_every_checked_example() {
 }
 
 #[test]
-fn readme_scene_json_loads() {
+fn example_scene_json_loads() {
     let dir = scene_dir("readme-scene");
     let scene = Scene::load(&dir).unwrap();
     assert_eq!(scene.views.len(), 2);
@@ -120,7 +120,7 @@ fn readme_scene_json_loads() {
 }
 
 #[test]
-fn readme_lights_json_loads_beside_a_colmap_capture() {
+fn example_lights_json_loads_beside_a_colmap_capture() {
     let scene = Scene::load(&scene_dir("readme-lights-src")).unwrap();
     let dir = common::tempdir("readme-lights");
     write_scene(&dir, &scene, SceneFormat::Colmap).unwrap();
@@ -134,7 +134,7 @@ fn readme_lights_json_loads_beside_a_colmap_capture() {
 }
 
 #[test]
-fn readme_transforms_json_loads_with_opengl_axes_flipped() {
+fn example_transforms_json_loads_with_opengl_axes_flipped() {
     let dir = common::tempdir("readme-transforms");
     let mesh = Path::new(ROOT).join("scenes/tiny_room/mesh.ply");
     std::fs::copy(&mesh, dir.join("mesh.ply")).unwrap();
@@ -182,14 +182,16 @@ fn readme_transforms_json_loads_with_opengl_axes_flipped() {
 }
 
 #[test]
-fn readme_camera_file_loads() {
+fn example_camera_file_loads() {
     let doc: CameraDoc = serde_json::from_str(&example("camera")).unwrap();
-    let cam = doc.to_camera(Path::new("README.md"), "camera").unwrap();
+    let cam = doc
+        .to_camera(Path::new("docs/formats.md"), "camera")
+        .unwrap();
     assert_eq!((cam.width, cam.height), (256, 192));
 }
 
 #[test]
-fn readme_camera_path_loads() {
+fn example_camera_path_loads() {
     let dir = common::tempdir("readme-path");
     let file = dir.join("path.json");
     std::fs::write(&file, example("path")).unwrap();
@@ -212,7 +214,7 @@ fn refused(what: &str, r: std::thread::Result<Result<(), String>>, file: &str, e
     assert!(e.contains(file) && e.contains(expect), "{what}: {e}");
 }
 
-/// Malformed variants of the README's scene.json (each one edit), camera file and camera path,
+/// Malformed variants of the example scene.json (each one edit), camera file and camera path,
 /// plus paths that are not what they claim: every one refused with the file and the problem.
 #[test]
 fn malformed_hand_written_files_are_refused_by_field() {
@@ -468,25 +470,6 @@ fn a_recorded_path_replays_its_keyframes() {
     let e = one.save(&f1, &home).unwrap_err().to_string();
     assert!(e.contains("one.json") && e.contains("two keyframes"), "{e}");
     assert!(!f1.exists());
-}
-
-/// The README's viewer section lists every key the viewer has (`view::hud::KEYS`, which F1
-/// shows), each on a line of its own.
-#[test]
-fn the_readme_lists_every_viewer_key() {
-    let text = std::fs::read_to_string(Path::new(ROOT).join("README.md")).unwrap();
-    let start = text
-        .find("### Viewer keys")
-        .expect("README: a \"### Viewer keys\" section");
-    let section = &text[start..];
-    let section = &section[..section[4..].find("\n#").map_or(section.len(), |e| e + 4)];
-    for (key, what) in relit_engine::view::hud::KEYS {
-        let row = format!("| `{key}` |");
-        assert!(
-            section.contains(&row),
-            "README's viewer keys lack {row} ({what})"
-        );
-    }
 }
 
 /// EXIF exposure tags: time and f-number as rationals, ISO.

@@ -463,6 +463,8 @@ fn network_mode_output_matches_network_on_the_frame_input() {
         (Storage::F32, NetBase::Ratio, 0.0, 1.0, true, 0.0),
         (Storage::F32, NetBase::Ratio, 0.0, 0.0, false, AGREE),
         (Storage::F16, NetBase::Ratio, 0.0, 1.0, true, AGREE),
+        (Storage::F32, NetBase::Glossy, 0.0, 0.0, false, 0.0),
+        (Storage::F16, NetBase::Glossy, 0.0, 1.0, true, AGREE),
     ] {
         let lights = if gate > 0.0 { &t.lights[..] } else { &[] };
         let scene =
@@ -501,18 +503,30 @@ fn network_mode_output_matches_network_on_the_frame_input() {
         let input = b.input.download_chw().unwrap();
         let has = surface_mask(b);
         let out = mk().run(&input, h, w).unwrap();
-        let ratio_in = (base == NetBase::Ratio).then_some(&input[..]);
+        let ratio_in = (base != NetBase::None).then_some(&input[..]);
+        // Base glossy: glossy mode's image from the frame's own glossy and irradiance planes.
+        let npix = (w * h) as usize;
+        let glossy_image = (base == NetBase::Glossy).then(|| {
+            let mut gl: Vec<[f32; 4]> = b.glossy.download_vec().unwrap();
+            gl.truncate(frame::glossy::PLANES * npix);
+            let mut irr: Vec<[f32; 4]> = b.irr.download_vec().unwrap();
+            irr.truncate(irradiance::PLANES * npix);
+            frame::glossy::reference_image(&gl, &irr, npix)
+        });
+        let glossy_in = glossy_image.as_deref();
         let c = output::Corrections {
             shrink,
             gate,
             gain,
             agree,
         };
-        let want = output::reference_network(&out, ratio_in, c, w as usize, &has);
+        let want = output::reference_network_on(&out, ratio_in, glossy_in, c, w as usize, &has);
         let without_agree = output::Corrections { agree: 0.0, ..c };
         for other in [output::Corrections::default(), without_agree] {
             if c != other {
-                let plain = output::reference_network(&out, ratio_in, other, w as usize, &has);
+                let plain = output::reference_network_on(
+                    &out, ratio_in, glossy_in, other, w as usize, &has,
+                );
                 assert!(
                     want != plain,
                     "{c:?} against {other:?} changed nothing: not a test"

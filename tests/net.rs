@@ -227,6 +227,58 @@ fn ratio_base_matches_pytorch_golden() {
     }
 }
 
+/// A network with base "glossy" (`model.py`): its diffuse corrections land on tm of glossy
+/// mode's image instead of the ratio base, the keys (gate, gain, agreement) as with base
+/// "ratio". The golden's random linear image stands in for glossy mode's; the output pass's CPU
+/// reference (`reference_network_on` with that image) must give PyTorch's image within 1e-4 of
+/// its scale. tests/frame.rs holds the GPU pass to the reference.
+#[test]
+fn glossy_base_matches_pytorch_golden() {
+    use relit_engine::frame::output::{reference_network_on, Corrections};
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
+    let io = std::fs::read(dir.join("net_w12r.io.safetensors")).unwrap();
+    let (_, meta) = safetensors::SafeTensors::read_metadata(&io).unwrap();
+    let value = |k: &str| -> f32 { meta.metadata().as_ref().unwrap()[k].parse().unwrap() };
+    let st = safetensors::SafeTensors::deserialize(&io).unwrap();
+    let (_, x, y, shape) = golden("net_w12r");
+    let npix = shape[1] * shape[2];
+    let planar: Vec<f32> = bytemuck::pod_collect_to_vec(st.tensor("glossy").unwrap().data());
+    let base: Vec<[f32; 3]> = (0..npix)
+        .map(|p| [0, 1, 2].map(|k| planar[k * npix + p]))
+        .collect();
+    let keys = Corrections {
+        shrink: 0.0,
+        gate: value("gate"),
+        gain: true,
+        agree: value("agree"),
+    };
+    let image: Vec<f32> = bytemuck::pod_collect_to_vec(st.tensor("image_glossy").unwrap().data());
+    let untm = relit_engine::frame::features::untonemap;
+    let got = reference_network_on(&y, Some(&x), Some(&base), keys, shape[2], &vec![true; npix]);
+    let want: Vec<f32> = (0..3)
+        .flat_map(|k| (0..npix).map(move |p| (k, p)))
+        .map(|(k, p)| untm(image[k * npix + p] + image[(k + 3) * npix + p]))
+        .collect();
+    let got: Vec<f32> = (0..3).flat_map(|k| got.iter().map(move |c| c[k])).collect();
+    let (e, s) = max_err(&got, &want);
+    assert!(e <= 1e-4 * s, "image_glossy: max error {e}, scale {s}");
+    // The base matters: the same corrections on the ratio base give another image.
+    let ratio = relit_engine::frame::output::reference_network(
+        &y,
+        Some(&x),
+        keys,
+        shape[2],
+        &vec![true; npix],
+    );
+    let ratio: Vec<f32> = (0..3)
+        .flat_map(|k| ratio.iter().map(move |c| c[k]))
+        .collect();
+    assert!(
+        max_err(&ratio, &want).0 > 10.0 * e.max(1e-6),
+        "the glossy base changes the image"
+    );
+}
+
 /// The trained network built into relit against PyTorch (float64) on a random input: the
 /// golden file is of these weights (their metadata match), and fp32 storage is within 1e-4 of
 /// the output's largest magnitude, as for random weights.

@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # The main job on the bundled scene: sets the machine up (tools/setup.sh), reports the device,
-# checks and bakes scenes/demo_room (preview quality, 75 s on 2 cores; a second run finds
-# everything cached), renders one novel view and records a walk through the room (paths/walk.json:
+# checks and bakes scenes/demo_room (preview quality: 79 s on 2 AVX-512 cores on 2026-12-06,
+# docs/benchmarks.md; a second run finds everything cached), renders one novel view and
+# records a walk through the room (paths/walk.json:
 # the TV and the window's reflection on the floor, the table, the bed, the shelf; the lamp by the
 # TV switches on, the original light dims to 30%, the lamp moves mid-room and on towards the bed,
 # and the original light returns) to out/demo_room_fly.mp4 in relit's default mode (the one that
 # scores best on rooms never trained on: the shipped network, which corrects eq. 5's ratio image
 # where the lamp's light reaches and the photos disagree, and fills the holes no photo sees;
-# README "Evaluation"), and with the ratio rule alone (its holes black) to
+# docs/evaluation.md), and with the ratio rule alone (its holes black) to
 # out/demo_room_fly_ratio.mp4 for comparison.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -18,7 +18,7 @@ RELIT="$CARGO_TARGET_DIR/debug/relit" "${RELIT_TRAIN_VENV:-$HOME/.cache/relit/tr
 RELIT="$CARGO_TARGET_DIR/debug/relit" "${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}/bin/python" \
   -m unittest -v tools/capture/test_capture.py
 # The cooperative-matrix kernels on lavapipe >= 26 (Mesa's emulation), in a Debian 13 root
-# built once with debootstrap (~600 MB in ~/.cache/relit; tools/lavapipe26.sh).
+# built once with debootstrap (~540 MB in ~/.cache/relit; tools/lavapipe26.sh).
 bash tools/lavapipe26.sh
 # Bounded fuzzing of every file format (2 min; tools/fuzz.sh).
 bash tools/fuzz.sh 15

@@ -37,6 +37,7 @@ pub fn push_layouts() -> Vec<gpu::PushLayout> {
         crate::trace::PUSH_LAYOUT,
         crate::frame::output::PUSH_LAYOUT,
         crate::frame::target_mirror::PUSH_LAYOUT,
+        crate::frame::glossy::PUSH_LAYOUT,
         crate::frame::features::PUSH_LAYOUT,
         crate::frame::reproject::PUSH_LAYOUT,
         crate::frame::view_cull::PUSH_LAYOUT,

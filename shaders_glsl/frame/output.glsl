@@ -5,7 +5,9 @@
 // a diffuse relighting baseline that needs no network. Writes linear RGBA32F (EXR) and a display image:
 // exposure (a linear scale) then the sRGB transfer function, 8 bits (screen, PNG).
 // Ratio-filled mode shows ratio's image where an input view sees the surface (I_1 not black) and
-// the network's in the holes, which ratio leaves black.
+// the network's in the holes, which ratio leaves black. Glossy mode (§3, L = a·E + S) relights
+// the fitted diffuse part D by eq. 5 and adds the view-dependent part S (frame/glossy.comp):
+// D / E_src · (E_add + E_src − E_rem) + S; where no fit holds, D = I_1 and S = 0: ratio's image.
 // In every mode a lit added light in front of the surface is drawn with its radiance, and a
 // declared original light on the surface with its dimmed glow (emitters.glsl).
 // A network with base "ratio" (model.py) corrects the ratio image: its diffuse output is added
@@ -31,6 +33,7 @@ layout(set = 0, binding = 16) readonly buffer NetOut { ACT4 o[]; };   // 6 chann
 layout(set = 0, binding = 17) writeonly buffer Hdr { vec4 hdr[]; };
 layout(set = 0, binding = 18) writeonly buffer Ldr { uint ldr[]; };
 layout(set = 0, binding = 26) readonly buffer NetIn { ACT4 x[]; };  // 66 channels, pack4
+layout(set = 0, binding = 30) readonly buffer Glossy { vec4 glossy[]; };  // (D, s), (S, lobe)
 
 layout(push_constant, scalar) uniform Push {
     uint width; uint height; uint mode; float exposure;
@@ -48,6 +51,7 @@ layout(push_constant, scalar) uniform Push {
 const uint MODE_NETWORK = 0u;
 const uint MODE_ULR = 1u;
 const uint MODE_RATIO_FILLED = 3u;  // ratio where I_1 is not black, the network in the holes
+const uint MODE_GLOSSY = 4u;        // the diffuse part relit by eq. 5 plus the view-dependent layer
 
 #include "tonemap.glsl"
 
@@ -127,20 +131,28 @@ float disagreement(ivec2 xy, uint npix) {
     return d / 256.0;
 }
 
-// Network mode's image: O_d + O_v, and with base "ratio" the ratio base plus the corrections,
-// soft-thresholded and gated on covered pixels. A closed gate leaves ratio's own image (not its
-// round trip through the input tensor, which fp16 storage rounds).
+// Glossy mode's image: D relit by eq. 5 plus S (black in holes, where both are 0).
+vec3 glossy_image(uint p, uint npix) {
+    vec3 es = irr[p].rgb;
+    vec3 d = glossy[p].rgb / max(es, vec3(E_FLOOR)) * (irr[npix + p].rgb + es - irr[2u * npix + p].rgb);
+    return d + glossy[npix + p].rgb;
+}
+
+// Network mode's image: O_d + O_v, and with base "ratio" (1) or "glossy" (2) that base plus the
+// corrections, soft-thresholded and gated on covered pixels. A closed gate leaves the base's own
+// image (not the ratio base's round trip through the input tensor, which fp16 storage rounds),
+// so no key removes a highlight the glossy layer draws.
 vec3 network_image(uint p, ivec2 xy, uint npix) {
     vec4 a = vec4(o[p]), b = vec4(o[npix + p]);
     vec3 od = a.xyz, ov = vec3(a.w, b.x, b.y);
-    if (pc.base == 1u) {
+    if (pc.base != 0u) {
         InputIrr e = input_irr(p, npix);
         bool covered = any(notEqual(vec4(x[p]).xyz, vec3(0.0)));
         float t = covered ? pc.shrink : 0.0;
         float w = covered && pc.gate > 0.0 ? min(new_light_share(e) / pc.gate, 1.0) : 1.0;
         if (covered && pc.agree > 0.0 && w > 0.0) w *= min(disagreement(xy, npix) / pc.agree, 1.0);
-        if (w == 0.0) return ratio_image(p, npix);
-        vec3 b = ratio_base(p, e);
+        if (w == 0.0) return pc.base == 2u ? glossy_image(p, npix) : ratio_image(p, npix);
+        vec3 b = pc.base == 2u ? tm(glossy_image(p, npix)) : ratio_base(p, e);
         od = soft_threshold(od, t);
         od = pc.gain == 1u && covered ? gained(b, od, w) : b + w * od;
         ov = w * soft_threshold(ov, t);
@@ -164,6 +176,8 @@ void main() {
     if (xp.w > 0.0) {
         if (pc.mode == MODE_NETWORK || (pc.mode == MODE_RATIO_FILLED && hole)) {
             c = network_image(p, xy, npix);
+        } else if (pc.mode == MODE_GLOSSY) {
+            c = glossy_image(p, npix);
         } else if (pc.mode == MODE_ULR) {
             c = vec3(comp[p].rgb);
         } else {

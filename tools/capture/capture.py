@@ -12,15 +12,19 @@ PHOTOS holds JPEG or PNG files (or an images/ folder of them). OUT gets images/,
 (binary COLMAP, PINHOLE cameras) and mesh.ply, in metres with +Y up (the mean of the cameras' up
 vectors). Without --scale, the median distance from a camera to the points it sees is set to
 ROOM_DEPTH_M; give --scale (metres per SfM unit) when a real distance is known. Work files go to
-OUT.work/ and are reused when a stage's output is already there. Then:
+OUT.work/ and are reused when a stage's output is already there. The terminal shows one progress
+line per stage; what COLMAP prints goes to OUT.work/colmap.log, PyMeshLab's to
+OUT.work/meshlab.log. Then:
     relit scene check OUT; relit scene find-lights OUT; relit bake OUT
 """
 import argparse
+import contextlib
 import json
 import math
 import os
 import shutil
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -40,9 +44,102 @@ class CaptureError(Exception):
     pass
 
 
-def say(stage, msg, t0=None):
-    took = f" ({time.time() - t0:.0f} s)" if t0 is not None else ""
-    print(f"capture: {stage}: {msg}{took}", flush=True)
+# The stages as the progress lines number them.
+STAGES = ["photos", "features", "matching", "mapping", "world", "undistort", "mesh"]
+
+
+class Progress:
+    """One line per stage, `capture [3/7] mapping: …`. On a terminal the running stage's line
+    shows its elapsed seconds, rewritten in place; elsewhere (a log file, CI) a line when a stage
+    starts, every `every` seconds while it runs, and when it ends. Writes to a copy of the
+    standard output taken when it is made, so it still reaches the terminal while
+    `quiet` sends the process's own output to a log."""
+
+    def __init__(self, stream=None, total=len(STAGES), every=30.0):
+        self.own = stream is None
+        if stream is None:
+            try:
+                stream = os.fdopen(os.dup(sys.stdout.fileno()), "w", buffering=1)
+            except (AttributeError, OSError, ValueError):
+                stream, self.own = sys.stdout, False
+        self.out, self.total, self.every = stream, total, every
+        self.tty = bool(getattr(stream, "isatty", lambda: False)())
+        self.n, self.stage, self.what, self.t0 = 0, None, "", 0.0
+        self._stop, self._ticker, self._lock = threading.Event(), None, threading.Lock()
+
+    def _line(self, text, end):
+        with self._lock:
+            if self.tty:
+                self.out.write("\r" + text + "\x1b[K" + end)
+            else:
+                self.out.write(text + end)
+            self.out.flush()
+
+    def _head(self):
+        return f"capture [{self.n}/{self.total}] {self.stage}"
+
+    def start(self, stage, what):
+        self.n += 1
+        self.stage, self.what, self.t0 = stage, what, time.time()
+        self._line(f"{self._head()}: {what}", "" if self.tty else "\n")
+        self._stop.clear()
+        self._ticker = threading.Thread(target=self._tick, daemon=True)
+        self._ticker.start()
+
+    def _tick(self):
+        step = 1.0 if self.tty else self.every
+        while not self._stop.wait(step):
+            took = time.time() - self.t0
+            self._line(f"{self._head()}: {self.what} {took:.0f} s", "" if self.tty else "\n")
+
+    def done(self, msg):
+        self._stop.set()
+        if self._ticker is not None:
+            self._ticker.join()
+            self._ticker = None
+        self._line(f"{self._head()}: {msg} ({time.time() - self.t0:.0f} s)", "\n")
+
+    def close(self):
+        """Ends a stage left running (an error stopped it) on its own line."""
+        if self._ticker is not None:
+            self._stop.set()
+            self._ticker.join()
+            self._ticker = None
+            self._line(f"{self._head()}: stopped after {time.time() - self.t0:.0f} s", "\n")
+        if self.own:
+            self.out.close()
+            self.own = False
+
+    def skip(self, stage, msg):
+        """A stage whose output is already in OUT.work/: one line."""
+        self.n += 1
+        self.stage, self.t0 = stage, time.time()
+        self._line(f"{self._head()}: {msg}", "\n")
+
+
+@contextlib.contextmanager
+def quiet(log: Path):
+    """Sends everything the process writes to its standard output and error (COLMAP's glog
+    lines and progress, PyMeshLab's messages, a child's output) to `log`, appended, and
+    restores both afterwards. Works on the file descriptors, where the C++ libraries write."""
+    log.parent.mkdir(parents=True, exist_ok=True)
+    for s in (sys.stdout, sys.stderr):
+        s.flush()
+    saved = [os.dup(1), os.dup(2)]
+    with open(log, "ab") as fh:
+        fh.write(f"--- {time.strftime('%Y-%m-%d %H:%M:%S')}\n".encode())
+        fh.flush()
+        try:
+            os.dup2(fh.fileno(), 1)
+            os.dup2(fh.fileno(), 2)
+            yield
+        finally:
+            for s in (sys.stdout, sys.stderr):
+                s.flush()
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
 
 
 def photos_in(folder: Path):
@@ -79,25 +176,36 @@ def resized_copies(files, dst: Path, long_side: int):
         os.replace(tmp, out)
 
 
-def sfm(images: Path, work: Path):
-    """SIFT, exhaustive matching and incremental mapping; the largest model."""
+def sfm(images: Path, work: Path, prog: Progress):
+    """SIFT, exhaustive matching and incremental mapping; the largest model. COLMAP's own
+    output goes to work/colmap.log."""
     import pycolmap
 
-    db, sparse = work / "database.db", work / "sparse"
+    db, sparse, log = work / "database.db", work / "sparse", work / "colmap.log"
     if (sparse / "0" / "images.bin").exists():
-        return pycolmap.Reconstruction(str(sparse / "0"))
+        rec = pycolmap.Reconstruction(str(sparse / "0"))
+        for stage in ("features", "matching"):
+            prog.skip(stage, f"cached in {work}")
+        prog.skip("mapping", f"cached: {rec.num_reg_images()} photos registered")
+        return rec
     for p in [db, sparse]:
         shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
-    t0 = time.time()
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "OPENCV"
-    pycolmap.extract_features(db, images, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader)
-    say("sfm", "features extracted", t0)
-    pycolmap.match_exhaustive(db)
-    say("sfm", "photos matched", t0)
-    maps = pycolmap.incremental_mapping(db, images, sparse)
+    prog.start("features", f"SIFT (COLMAP's log: {log})")
+    with quiet(log):
+        pycolmap.extract_features(db, images, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader)
+    prog.done("SIFT features extracted")
+    prog.start("matching", "exhaustive")
+    with quiet(log):
+        pycolmap.match_exhaustive(db)
+    prog.done("photos matched")
+    prog.start("mapping", "incremental")
+    with quiet(log):
+        maps = pycolmap.incremental_mapping(db, images, sparse)
     if not maps:
-        raise CaptureError(f"{images}: structure from motion registered no photos (too little overlap or texture)")
+        raise CaptureError(f"{images}: structure from motion registered no photos (too little overlap or texture; "
+                           f"COLMAP's log: {log})")
     best = max(maps.values(), key=lambda r: r.num_reg_images())
     # Keep the largest model as sparse/0 whatever number COLMAP gave it.
     final = work / "sparse-best"
@@ -107,7 +215,7 @@ def sfm(images: Path, work: Path):
     shutil.rmtree(sparse)
     (sparse).mkdir()
     os.replace(final, sparse / "0")
-    say("sfm", f"{best.num_reg_images()} photos registered, {best.num_points3D()} points", t0)
+    prog.done(f"{best.num_reg_images()} photos registered, {best.num_points3D()} points")
     return best
 
 
@@ -150,16 +258,16 @@ def to_world(rec, scale):
     return scale
 
 
-def undistort(rec_dir: Path, images: Path, out: Path, long_side: int):
+def undistort(rec_dir: Path, images: Path, out: Path, long_side: int, log: Path):
+    """Pinhole photos at `long_side` px; COLMAP's own output goes to `log`."""
     import pycolmap
 
-    t0 = time.time()
     opts = pycolmap.UndistortCameraOptions()
     opts.max_image_size = long_side
     tmp = out.parent / (out.name + ".undist")
     shutil.rmtree(tmp, ignore_errors=True)
-    pycolmap.undistort_images(tmp, rec_dir, images, undistort_options=opts)
-    say("undistort", f"pinhole photos at {long_side} px", t0)
+    with quiet(log):
+        pycolmap.undistort_images(tmp, rec_dir, images, undistort_options=opts)
     return tmp
 
 
@@ -235,19 +343,19 @@ def poisson_depth(points, reach):
     return min(max(need, 8), 12)
 
 
-def surface(points, nrm, depth, out: Path):
+def surface(points, nrm, depth, out: Path, log: Path):
     """Screened Poisson over the oriented points (depth None: `poisson_depth`), trimmed where no
-    point is near."""
+    point is near; PyMeshLab's own output goes to `log`. Returns what the progress line says."""
     import pymeshlab
 
-    t0 = time.time()
     _, spacing = knn(points, 2)
     reach = 8.0 * float(np.median(spacing[:, 1]))
     if depth is None:
         depth = poisson_depth(points, reach)
-    ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=points, v_normals_matrix=nrm))
-    ms.generate_surface_reconstruction_screened_poisson(depth=depth, preclean=True)
+    with quiet(log):
+        ms = pymeshlab.MeshSet()
+        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=points, v_normals_matrix=nrm))
+        ms.generate_surface_reconstruction_screened_poisson(depth=depth, preclean=True)
     m = ms.current_mesh()
     v, f = m.vertex_matrix(), m.face_matrix()
     near = np.zeros(len(v), bool)
@@ -260,7 +368,7 @@ def surface(points, nrm, depth, out: Path):
         raise CaptureError(f"the Poisson surface (depth {depth}) keeps {keep.sum()} faces near the points; "
                            f"try another --poisson-depth (a deeper grid follows the points more closely)")
     write_ply(out, v, f[keep])
-    say("mesh", f"{keep.sum()} triangles within {reach:.3f} m of a point (Poisson depth {depth})", t0)
+    return f"{keep.sum()} triangles within {reach:.3f} m of a point (Poisson depth {depth})"
 
 
 def write_ply(path: Path, v, f):
@@ -314,44 +422,54 @@ def run(a):
         raise CaptureError(f"{e.name} is not installed: pip install {' '.join(REQUIREMENTS)}")
     work = a.out.parent / (a.out.name + ".work")
     t0 = time.time()
-    resized_copies(files, work / "images", a.sfm_size)
-    say("photos", f"{len(files)} photos at {a.sfm_size} px", t0)
-    rec = sfm(work / "images", work)
-    if rec.num_reg_images() < 3:
-        raise CaptureError(f"{a.photos}: only {rec.num_reg_images()} photos registered")
-    scale = to_world(rec, a.scale)
-    world = work / "world"
-    shutil.rmtree(world, ignore_errors=True)
-    world.mkdir()
-    rec.write(world)
-    say("world", f"{scale:.4g} m per SfM unit, +Y up")
-    und = undistort(world, work / "images", a.out, a.size)
-    carry_exif(work / "images", und / "images")
-    pts, towards = good_points(pycolmap.Reconstruction(str(und / "sparse")))
-    stage = a.out.parent / (a.out.name + ".tmp")
-    shutil.rmtree(stage, ignore_errors=True)
-    (stage / "sparse").mkdir(parents=True)
-    os.replace(und / "images", stage / "images")
-    os.replace(und / "sparse", stage / "sparse" / "0")
-    surface(pts, normals(pts, towards), a.poisson_depth, stage / "mesh.ply")
-    (stage / "capture.json").write_text(
-        json.dumps(
-            {
-                "photos": str(a.photos),
-                "registered": rec.num_reg_images(),
-                "of": len(files),
-                "metres_per_sfm_unit": scale,
-                "scale_given": a.scale is not None,
-                "size": a.size,
-            },
-            indent=1,
+    prog = Progress()
+    try:
+        prog.start("photos", f"{len(files)} photos to {a.sfm_size} px")
+        resized_copies(files, work / "images", a.sfm_size)
+        prog.done(f"{len(files)} photos at {a.sfm_size} px")
+        rec = sfm(work / "images", work, prog)
+        if rec.num_reg_images() < 3:
+            raise CaptureError(f"{a.photos}: only {rec.num_reg_images()} photos registered")
+        prog.start("world", "metres, +Y up")
+        scale = to_world(rec, a.scale)
+        world = work / "world"
+        shutil.rmtree(world, ignore_errors=True)
+        world.mkdir()
+        rec.write(world)
+        prog.done(f"{scale:.4g} m per SfM unit, +Y up")
+        prog.start("undistort", f"pinhole photos at {a.size} px")
+        und = undistort(world, work / "images", a.out, a.size, work / "colmap.log")
+        carry_exif(work / "images", und / "images")
+        prog.done(f"pinhole photos at {a.size} px")
+        prog.start("mesh", "screened Poisson over the sparse points")
+        pts, towards = good_points(pycolmap.Reconstruction(str(und / "sparse")))
+        stage = a.out.parent / (a.out.name + ".tmp")
+        shutil.rmtree(stage, ignore_errors=True)
+        (stage / "sparse").mkdir(parents=True)
+        os.replace(und / "images", stage / "images")
+        os.replace(und / "sparse", stage / "sparse" / "0")
+        prog.done(surface(pts, normals(pts, towards), a.poisson_depth, stage / "mesh.ply", work / "meshlab.log"))
+        (stage / "capture.json").write_text(
+            json.dumps(
+                {
+                    "photos": str(a.photos),
+                    "registered": rec.num_reg_images(),
+                    "of": len(files),
+                    "metres_per_sfm_unit": scale,
+                    "scale_given": a.scale is not None,
+                    "size": a.size,
+                },
+                indent=1,
+            )
         )
-    )
-    shutil.rmtree(und, ignore_errors=True)
-    if a.out.exists():
-        a.out.rmdir()
-    os.replace(stage, a.out)
-    say("done", f"{a.out}: next `relit scene check {a.out}`", t0)
+        shutil.rmtree(und, ignore_errors=True)
+        if a.out.exists():
+            a.out.rmdir()
+        os.replace(stage, a.out)
+        print(f"capture: {a.out} in {time.time() - t0:.0f} s (logs in {work}); next `relit scene check {a.out}`",
+              flush=True)
+    finally:
+        prog.close()
 
 
 if __name__ == "__main__":

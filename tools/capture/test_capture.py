@@ -1,10 +1,12 @@
-"""The capture tool's own geometry (no pycolmap needed): neighbours, normals, the trimmed mesh
-file relit reads, and its errors. Run: RELIT=target/debug/relit python -m unittest tools/capture/test_capture.py
+"""The capture tool's own parts (no pycolmap needed): neighbours, normals, the trimmed mesh
+file relit reads, its progress lines and the log that takes COLMAP's output, and its errors. Run: RELIT=target/debug/relit python -m unittest tools/capture/test_capture.py
 """
+import io
 import os
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 from pathlib import Path
 
@@ -76,6 +78,48 @@ class CaptureGeometry(unittest.TestCase):
             self.assertEqual(int(ifd[0x8827]), 200)
             self.assertEqual(Image.open(und / "a.jpg").size, (4, 3), "the undistorted pixels stay")
             self.assertFalse(Image.open(und / "b.jpg").info.get("exif"), "no EXIF made up")
+
+    def test_colmaps_output_goes_to_the_log_and_the_stages_to_progress_lines(self):
+        with tempfile.TemporaryDirectory() as d:
+            log = Path(d) / "out.work" / "colmap.log"
+            shown = io.StringIO()
+            prog = C.Progress(shown, total=2, every=0.05)
+            prog.start("features", "SIFT")
+            before = [os.fstat(fd) for fd in (1, 2)]
+            with C.quiet(log):
+                # What the C++ library does: writes to the file descriptors, also from children.
+                os.write(1, b"glog on stdout\n")
+                os.write(2, b"glog on stderr\n")
+                subprocess.run(["sh", "-c", "echo from a child; echo child error >&2"], check=True)
+                time.sleep(0.2)
+            after = [os.fstat(fd) for fd in (1, 2)]
+            prog.done("11 photos")
+            prog.skip("mapping", "cached")
+            prog.close()
+            for b, a in zip(before, after):
+                self.assertEqual((b.st_dev, b.st_ino), (a.st_dev, a.st_ino), "stdout and stderr restored")
+            text = log.read_text()
+            for s in ["glog on stdout", "glog on stderr", "from a child", "child error"]:
+                self.assertIn(s, text)
+            lines = shown.getvalue().splitlines()
+            self.assertEqual(lines[0], "capture [1/2] features: SIFT")
+            self.assertRegex(lines[-2], r"^capture \[1/2\] features: 11 photos \(\d+ s\)$")
+            self.assertEqual(lines[-1], "capture [2/2] mapping: cached")
+            self.assertTrue(any("features: SIFT " in l and l.endswith(" s") for l in lines[1:-2]),
+                            "a line while the stage runs")
+            self.assertFalse(any("glog" in l or "child" in l for l in lines))
+            # A second stage appends to the same log.
+            with C.quiet(log):
+                os.write(2, b"second stage\n")
+            self.assertIn("glog on stdout", log.read_text())
+            self.assertIn("second stage", log.read_text())
+
+    def test_a_stage_stopped_by_an_error_ends_its_line(self):
+        shown = io.StringIO()
+        prog = C.Progress(shown, total=7)
+        prog.start("mesh", "Poisson")
+        prog.close()
+        self.assertRegex(shown.getvalue().splitlines()[-1], r"^capture \[1/7\] mesh: stopped after \d+ s$")
 
     def test_too_few_photos_is_an_error_naming_the_folder(self):
         with tempfile.TemporaryDirectory() as d:

@@ -15,7 +15,12 @@ For every camera (capture views and test views) and lighting condition of a scen
 and the input photographs images/<view>.exr = the total radiance under the original lighting.
 
 Usage: render.py SCENE_DIR [--spp N] [--only inputs|aov|all|photos] [--views a,b]
-                 [--conditions a,b] [--denoise] [--denoise-photos]
+                 [--conditions a,b] [--denoise] [--denoise-photos] [--move-light NAME=DX,DY,DZ ...]
+
+--move-light NAME=DX,DY,DZ (repeatable; metres) renders as if the light NAME stood that far
+from where scene.json puts it (its quad's corner or its disk's centre moved; scene.json is not
+written). Everything the run renders sees it moved, input photographs included: for the truth
+of a lamp moved after the capture, render the test views alone (--views).
 
 --denoise runs Intel Open Image Denoise (pyoidn) on the targets (total and diffuse, guided by the
 albedo and normal AOVs; glossy stays their difference). Measured on a validation scene (4 test
@@ -256,6 +261,34 @@ def load_description(scene_dir):
     return path, doc
 
 
+def parse_move(spec):
+    """NAME=DX,DY,DZ (an argparse type) → (NAME, offset in metres)."""
+    name, _, d = spec.partition("=")
+    try:
+        off = [float(x) for x in d.split(",")]
+    except ValueError:
+        off = []
+    if not name or len(off) != 3 or not all(map(math.isfinite, off)):
+        raise argparse.ArgumentTypeError(f"{spec!r}: expected NAME=DX,DY,DZ (metres)")
+    return name, off
+
+
+def move_lights(doc, moves, where):
+    """Moves each light named in `moves` ((name, offset) pairs) by its offset, in `doc`."""
+    lights = {l["name"]: l for l in doc.get("lights", [])}
+    for name, off in moves or []:
+        if name not in lights:
+            raise SceneError(f"{where}: --move-light {name}: no such light "
+                             f"(lights: {', '.join(lights) or 'none'})")
+        l = lights[name]
+        # A quad stands at its corner, a disk at its centre (light_shape; the scene format
+        # has no other shapes).
+        key = "corner" if l.get("shape") == "quad" else "center"
+        if key not in l:
+            raise SceneError(f"{where}: --move-light {name}: shape {l.get('shape')!r} has no {key}")
+        l[key] = [float(p) + o for p, o in zip(l[key], off)]
+
+
 def mitsuba_scene(scene_dir, doc, where, lit, cameras, spp, aov=False, intensities=None):
     """`lit`: names of the lights that emit (radiance × intensity); the others are black."""
     syn = doc["synthetic"]
@@ -368,15 +401,16 @@ def denoise_photos_in_place(scene_dir, log=print):
 
 
 def render_all(scene_dir, spp=128, only="all", views=None, conditions=None, seed=0, log=print,
-               denoise=False, denoise_photos=False):
+               denoise=False, denoise_photos=False, moves=None):
     """Renders the ground truth. With `denoise`, the targets (total and diffuse; glossy is their
     difference) are denoised with OIDN; with `denoise_photos`, the input photographs; the mirror
-    images never are."""
+    images never are. `moves`: (light name, offset) pairs applied before rendering."""
     if only == "photos":
         t0 = time.time()
         denoise_photos_in_place(scene_dir, log)
         return time.time() - t0
     scene_path, doc = load_description(scene_dir)
+    move_lights(doc, moves, scene_path)
     syn = doc["synthetic"]
     gt = os.path.join(scene_dir, syn["ground_truth"])
     cams = views_of(doc, scene_path)
@@ -438,12 +472,14 @@ def main():
                     help="denoise the targets with Intel Open Image Denoise (pyoidn)")
     ap.add_argument("--denoise-photos", action="store_true",
                     help="denoise the input photographs too (a camera's photo has no fireflies)")
+    ap.add_argument("--move-light", type=parse_move, action="append", default=[],
+                    metavar="NAME=DX,DY,DZ", help="move a light by this offset (metres) first")
     a = ap.parse_args()
     try:
         t = render_all(a.scene, a.spp, a.only,
                        a.views.split(",") if a.views else None,
                        a.conditions.split(",") if a.conditions else None, a.seed,
-                       denoise=a.denoise, denoise_photos=a.denoise_photos)
+                       denoise=a.denoise, denoise_photos=a.denoise_photos, moves=a.move_light)
     except SceneError as e:
         print(f"error: {e}", file=sys.stderr)
         sys.exit(1)

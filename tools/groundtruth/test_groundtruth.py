@@ -222,5 +222,36 @@ class GroundTruth(unittest.TestCase):
         self.assertNotIn("Traceback", r.stderr)
 
 
+class MoveLight(unittest.TestCase):
+    """--move-light: its argument and the geometry it moves (nothing rendered)."""
+
+    def doc(self):
+        quad = {"name": "lamp", "shape": "quad", "corner": [1.0, 2.0, 3.0],
+                "edge_u": [0.5, 0.0, 0.0], "edge_v": [0.0, 0.0, 0.5], "radiance": [1.0] * 3}
+        disk = {"name": "spot", "shape": "disk", "center": [0.0, 2.5, 0.0],
+                "normal": [0.0, -1.0, 0.0], "radius": 0.1, "radiance": [1.0] * 3}
+        return {"lights": [quad, disk]}
+
+    def test_parses_name_and_offset(self):
+        self.assertEqual(render.parse_move("lamp=0.5,0,-1"), ("lamp", [0.5, 0.0, -1.0]))
+        for bad in ("lamp", "lamp=1,2", "=1,2,3", "lamp=1,x,3", "lamp=1,2,nan"):
+            with self.assertRaises(render.argparse.ArgumentTypeError, msg=bad):
+                render.parse_move(bad)
+
+    def test_moves_the_corner_or_centre_and_keeps_the_rest(self):
+        doc = self.doc()
+        render.move_lights(doc, [("lamp", [0.5, 0.0, -1.0]), ("spot", [0.0, -0.5, 0.0]),
+                                 ("lamp", [0.0, 1.0, 0.0])], "test")
+        quad, disk = doc["lights"]
+        self.assertEqual(quad["corner"], [1.5, 3.0, 2.0])
+        self.assertEqual(quad["edge_u"], [0.5, 0.0, 0.0])
+        self.assertEqual(disk["center"], [0.0, 2.0, 0.0])
+        self.assertEqual(disk["normal"], [0.0, -1.0, 0.0])
+
+    def test_an_unknown_light_is_named(self):
+        with self.assertRaisesRegex(render.SceneError, "ghost.*lamp, spot"):
+            render.move_lights(self.doc(), [("ghost", [0.0, 0.0, 1.0])], "test")
+
+
 if __name__ == "__main__":
     unittest.main()

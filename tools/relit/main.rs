@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
 use relit_engine::gpu::{self, DeviceChoice, Gpu, GpuOptions};
 use relit_engine::scene::{self, Scene, SceneFormat};
 
@@ -114,7 +114,7 @@ enum Cmd {
     /// Record a flythrough along a camera path: an MP4 (ffmpeg) or a directory of PNG frames.
     Fly {
         scene: PathBuf,
-        /// Camera path JSON (keyframes and lighting keyframes; see the README).
+        /// Camera path JSON (keyframes and lighting keyframes; see docs/formats.md).
         #[arg(long)]
         path: PathBuf,
         /// video.mp4, or a directory for frame00000.png, …
@@ -156,9 +156,7 @@ enum Cmd {
     /// Build a training dataset (§6), resumably: per seed, scenegen's room, Mitsuba's ground
     /// truth, the bake and one sample per camera with its lighting kept linear (dump --parts).
     Dataset(dataset::DatasetArgs),
-    /// The interactive viewer (winit window, Vulkan swapchain). Keys: WASD/QE move, drag or
-    /// arrows look, 0–9 lighting presets, Tab/+/− light intensity, [ ] α_dim, M network/ULR/ratio,
-    /// P screenshot, F11 fullscreen, Esc quit.
+    /// The interactive viewer (winit window, Vulkan swapchain); `relit view --help` lists its keys.
     View {
         scene: PathBuf,
         /// Render resolution WxH (the window starts at this size; frames are scaled to it).
@@ -457,7 +455,7 @@ fn info(opts: &GpuOptions) -> Result<()> {
     }
     println!("trained network: {}", shipped_network());
     println!(
-        "default mode: {:?} (the best on the held-out rooms; README \"Evaluation\")",
+        "default mode: {:?} (the best on the held-out rooms; docs/evaluation.md)",
         relit_engine::frame::DEFAULT_MODE
     );
     println!("limits:");
@@ -640,7 +638,7 @@ fn scene_check(dir: &std::path::Path, quick: bool) -> Result<()> {
     }
     if !s.lights.iter().any(|l| l.original) {
         println!(
-            "warning: no original light is declared or found. A light the photos show clipped is found by `relit scene find-lights`; one no photo shows cannot be found from the photos: declare it in scene.json (README › Scene formats)"
+            "warning: no original light is declared or found. A light the photos show clipped is found by `relit scene find-lights`; one no photo shows cannot be found from the photos: declare it in scene.json (docs/formats.md)"
         );
     }
     // The proxy mesh is loaded in both modes, so --quick checks coverage too.
@@ -817,6 +815,27 @@ fn bake(
     Ok(())
 }
 
+/// The viewer's keys as help text, from the list the viewer's F1 help shows
+/// (`view::hud::KEYS`), so `relit --help`, `relit view --help`, F1 and the README agree.
+fn viewer_keys_help() -> String {
+    let mut s = String::from("Viewer keys (relit view; F1 shows them in the window):\n");
+    for line in relit_engine::view::hud::key_lines() {
+        s.push_str("  ");
+        s.push_str(&line);
+        s.push('\n');
+    }
+    s
+}
+
+/// The command line, with the viewer's keys after `relit --help` and `relit view --help`.
+fn parse_cli() -> Cli {
+    let keys = viewer_keys_help();
+    let cmd = Cli::command()
+        .after_long_help(keys.clone())
+        .mut_subcommand("view", |view| view.after_help(keys));
+    Cli::from_arg_matches(&cmd.get_matches()).unwrap_or_else(|e| e.exit())
+}
+
 fn main() {
     // Output piped into `head` and the like: a closed pipe ends the process quietly, as other
     // command-line tools do, instead of a panic in println!.
@@ -824,7 +843,7 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let cli = Cli::parse();
+    let cli = parse_cli();
     let opts = gpu_options(&cli);
     MESH.set(cli.mesh.clone()).expect("set once");
     let res = match &cli.cmd {

@@ -57,6 +57,10 @@ pub enum ModeArg {
     Ratio,
     /// Ratio where an input view sees the surface, the network in the holes no view sees.
     RatioFilled,
+    /// §3's L = a·E + S without the network: the photos' diffuse part relit by eq. 5 plus a
+    /// view-dependent layer fitted from the photos and their mirror images (highlights that
+    /// move with the view and with a lamp); ratio's image where no fit holds.
+    Glossy,
 }
 
 /// The best complete bake of `scene` (restricted to a quality preset's sample counts when
@@ -175,6 +179,7 @@ pub fn open_renderer(
         Some(ModeArg::Ulr) => Mode::Ulr,
         Some(ModeArg::Ratio) => Mode::Ratio,
         Some(ModeArg::RatioFilled) => Mode::RatioFilled,
+        Some(ModeArg::Glossy) => Mode::Glossy,
         Some(ModeArg::Network) => Mode::Network,
         // Weights a user names are what they want to see; else the best mode we can show.
         None if a.weights.is_some() => Mode::Network,
@@ -250,7 +255,7 @@ fn left_out(scene: &Scene, camera: &str, leave_out: bool) -> Result<Option<u32>>
 }
 
 /// Reads a `--batch` file: a JSON array of {"camera", "lighting" (optional), "mode" (optional:
-/// network, ratio, ratio-filled or ulr), "leave_out" (optional: true leaves the camera's own
+/// network, ratio, ratio-filled, glossy or ulr), "leave_out" (optional: true leaves the camera's own
 /// input view out), "out"}.
 fn batch_jobs(path: &Path) -> Result<Vec<BatchJob>> {
     let text =
@@ -283,8 +288,9 @@ fn batch_jobs(path: &Path) -> Result<Vec<BatchJob>> {
             Some("ratio") => Some(Mode::Ratio),
             Some("ratio-filled") => Some(Mode::RatioFilled),
             Some("ulr") => Some(Mode::Ulr),
+            Some("glossy") => Some(Mode::Glossy),
             Some(m) => bail!(
-                "{}: render {i}: mode \"{m}\": expected network, ratio, ratio-filled or ulr",
+                "{}: render {i}: mode \"{m}\": expected network, ratio, ratio-filled, glossy or ulr",
                 path.display()
             ),
         };
@@ -644,9 +650,12 @@ pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> 
         r.render(&cam, &light, Mode::Ratio, 1.0, None)?;
         let input = r.buffers_ref().unwrap().input.download_chw()?;
         let ratio = planar_rgb(&r.hdr()?);
+        r.render(&cam, &light, Mode::Glossy, 1.0, None)?;
+        let glossy = planar_rgb(&glossy_image(&r)?);
         let mut t = vec![
             ("input".to_string(), input, vec![66, h, w]),
             ("ratio_image".to_string(), ratio, vec![3, h, w]),
+            ("glossy_image".to_string(), glossy, vec![3, h, w]),
         ];
         let gt = ground_truth(&scene, &cam_name, &light)?;
         let has = gt.is_some();
@@ -680,9 +689,13 @@ const PARTS_DOC: &str = "static: the 66 channels under the original lighting (al
 light); e_src: E_src (linear, W/m2); m_orig: M_tgt linear under the original lighting; \
 light_glow, light_albedo: the glow of the declared original light each pixel shows and the \
 albedo of its surface (0 off them; the frame draws (1-alpha) light_glow + light_albedo E_add/pi \
-there in every mode); for each \
+there in every mode); glossy_d, glossy_s, glossy_lobe: the view-dependent layer's diffuse part \
+D (3), specular strength s (1) and lobe + 1 (1; 0: no fit), which no lighting changes; s_orig: \
+its view-dependent part S under the original lighting; for each \
 added light L (relit.lights order) at intensity 1 with the original removed (alpha 1): \
-e_add.L (E_add linear), m_add.L (M_tgt linear), dist.L (channel 65). Channels 48-50 = tm(M), \
+e_add.L (E_add linear), m_add.L (M_tgt linear), dist.L (channel 65), s_add.L (S). Glossy mode's \
+image before any light is drawn: D / max(e_src, 1e-4) (e_add + (1-alpha) e_src) + S, S = \
+(1-alpha) s_orig + sum_L i_L s_add.L, except where glossy_lobe = 1: there S = glossy_s M. Channels 48-50 = tm(M), \
 M = (1-alpha) m_orig + sum_L i_L m_add.L, except where some lit light has dist.L != static[65]: \
 there the nearest such light (smallest dist.L) gives M = i_L m_add.L and channel 65 = dist.L; \
 51-53 = tm(e_src/pi), 54-56 = tm(sum_L i_L e_add.L/pi), 57-59 = tm(alpha e_src/pi); \
@@ -701,15 +714,20 @@ fn parts_tensors(
     let (w, h) = (cam.width as usize, cam.height as usize);
     let names = frame::added_lights(scene);
     let mut light = Lighting::original(scene);
-    r.render(cam, &light, Mode::Ulr, 1.0, None)?;
+    r.render(cam, &light, Mode::Glossy, 1.0, None)?;
     let (input, irr, mirror) = frame_planes(r)?;
     let (glow, albedo) = glow_planes(r, cam)?;
+    let [d, s, lobe, s_orig] = glossy_planes(r)?;
     let mut t: Vec<Tensor> = vec![
         ("static".into(), input, vec![66, h, w]),
         ("e_src".into(), irr[0].clone(), vec![3, h, w]),
         ("m_orig".into(), mirror, vec![3, h, w]),
         ("light_glow".into(), glow, vec![3, h, w]),
         ("light_albedo".into(), albedo, vec![3, h, w]),
+        ("glossy_d".into(), d, vec![3, h, w]),
+        ("glossy_s".into(), s, vec![1, h, w]),
+        ("glossy_lobe".into(), lobe, vec![1, h, w]),
+        ("s_orig".into(), s_orig, vec![3, h, w]),
     ];
     let mut has_gt = true;
     let mut add_targets = |t: &mut Vec<Tensor>, cond: &str, l: &Lighting| -> Result<()> {
@@ -729,9 +747,11 @@ fn parts_tensors(
         light.alpha_dim = 1.0;
         light.intensities.iter_mut().for_each(|i| *i = 0.0);
         light.intensities[k] = 1.0;
-        r.render(cam, &light, Mode::Ulr, 1.0, None)?;
+        r.render(cam, &light, Mode::Glossy, 1.0, None)?;
         let (input, irr, mirror) = frame_planes(r)?;
         let dist = input[65 * w * h..].to_vec();
+        let [_, _, _, s_add] = glossy_planes(r)?;
+        t.push((format!("s_add.{name}"), s_add, vec![3, h, w]));
         t.push((format!("e_add.{name}"), irr[1].clone(), vec![3, h, w]));
         t.push((format!("m_add.{name}"), mirror, vec![3, h, w]));
         t.push((format!("dist.{name}"), dist, vec![1, h, w]));
@@ -786,6 +806,34 @@ fn frame_planes(r: &Renderer) -> Result<FramePlanes> {
             planar(&irr[2 * n..3 * n]),
         ],
         planar(&mirror[..n]),
+    ))
+}
+
+/// The last frame's view-dependent layer, planar: D (3 planes), s (1), lobe + 1 (1), S (3).
+fn glossy_planes(r: &Renderer) -> Result<[Vec<f32>; 4]> {
+    let b = r.buffers_ref().context("no frame rendered")?;
+    let n = (b.width * b.height) as usize;
+    let gl: Vec<[f32; 4]> = b.glossy.download_vec()?;
+    let (dp, sp) = (&gl[..n], &gl[n..2 * n]);
+    Ok([
+        planar_rgb(dp),
+        dp.iter().map(|v| v[3]).collect(),
+        sp.iter().map(|v| v[3]).collect(),
+        planar_rgb(sp),
+    ])
+}
+
+/// Glossy mode's image of the last frame before any light is drawn over it (the base of a
+/// network with base "glossy", as the output pass forms it).
+fn glossy_image(r: &Renderer) -> Result<Vec<[f32; 3]>> {
+    let b = r.buffers_ref().context("no frame rendered")?;
+    let n = (b.width * b.height) as usize;
+    let gl: Vec<[f32; 4]> = b.glossy.download_vec()?;
+    let irr: Vec<[f32; 4]> = b.irr.download_vec()?;
+    Ok(frame::glossy::reference_image(
+        &gl[..2 * n],
+        &irr[..3 * n],
+        n,
     ))
 }
 

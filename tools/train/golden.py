@@ -12,7 +12,9 @@ pass must reproduce from the raw output and the input (`frame::output::reference
 same with the gate and `gain` (its diffuse correction a colour-keeping gain on the ratio image),
 and "image_agree": the same with the gate, the gain and `agree` A = AGREE (metadata "agree"). Its
 input has holes: each of the layers I_2..I_8 is black at a fifth of the pixels and I_1 at a
-twentieth, so the disagreement's count of layers varies.
+twentieth, so the disagreement's count of layers varies. It also holds "glossy", a random
+linear image standing in for glossy mode's, and "image_glossy": the same network with base
+"glossy" (that image as its base) and the gate, the gain and the agreement.
 
 and, whenever the shipped weights change, the output of the trained network built into relit
 (engine/weights/relit.safetensors) on a random input, with the weights' metadata copied so that
@@ -87,6 +89,8 @@ def main(out, names=()):
         x = torch.rand((1, net.config["in_channels"], h, w), generator=gen, dtype=torch.float64)
         if net.config["base"] != "none":
             x = with_holes(x, gen)
+            # Drawn last, so that the tensors above stay as files written before it hold them.
+            glossy = torch.rand((1, 3, h, w), generator=gen, dtype=torch.float64) * 0.8
         with torch.no_grad():
             y, image = net.raw(x), net(x)
         io = {"input": x[0].float().contiguous(), "output": y[0].float().contiguous()}
@@ -108,6 +112,11 @@ def main(out, names=()):
             with torch.no_grad():
                 io["image_agree"] = net(x)[0].float().contiguous()
                 a = M.agreement_weight(x, AGREE)
+            net.config["base"] = "glossy"
+            with torch.no_grad():
+                io["image_glossy"] = net(x, glossy)[0].float().contiguous()
+            io["glossy"] = glossy[0].float().contiguous()
+            net.config["base"] = "ratio"
             net.config["gate"], net.config["gain"], net.config["agree"] = 0.0, False, 0.0
             for what, v in (("gate", w), ("agreement", a)):
                 print(f"{name}: {what} weights {float(v.min()):.3f}..{float(v.max()):.3f}, "

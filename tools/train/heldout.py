@@ -3,13 +3,18 @@ training or validation dataset uses, and rooms written by hand, at 256×192 with
 views, each with one added lamp of a saturated or strongly tinted colour, Mitsuba's truth for
 the test views under the original lighting and the lamp alone, and the bake users run.
 
-  python3 tools/train/heldout.py build OUT [--set heldout|validation|tiny] [--spp 64] [--rooms A,B]
+  python3 tools/train/heldout.py build OUT [--set heldout|validation|glossy|tiny] [--spp 64]
+                                     [--rooms A,B] [--relit BIN] [--scenegen BIN]
 
 Sets (fixed here, so that every report speaks of the same rooms):
 - heldout: only reports, never chooses. Six scenegen rooms (seeds 700000–700005, 32 views,
   4 test views), whose original lights are seen by 3, 1 or 0 of the light-aimed views, with a
   red, green, blue, warm, cold or magenta lamp; tests/scenes/hand_room (16 views, cold lamp)
   and tests/scenes/hand_room2 (near-mirror, glossy cabinet, strong wall colours; green lamp).
+  It must keep at least three rooms with a glossy floor or a near-mirror (what glossy mode is
+  judged on); it has all eight: scenegen's floors are plastic, GGX α 0.05–0.3 by seed (700000–
+  700005: 0.10, 0.21, 0.06, 0.23, 0.17, 0.20), hand_room's floor is plastic α 0.1 and
+  hand_room2 has a conductor mirror α 0.03.
 - validation: what checkpoints and designs are chosen on: scenegen seeds 800000–800002;
   800002 has scenegen's varied finishes (coloured walls, a near-mirror, a lacquered cabinet),
   so that a choice meets what hand_room2 tests (added 2026-12-03: on hand_room2 the s7-clean
@@ -21,6 +26,15 @@ Sets (fixed here, so that every report speaks of the same rooms):
   2026-12-03, session 14): a third room written by hand — a glossy dark floor, a rougher
   near-mirror, lacquered and glossy black furniture, four wall colours, a ceiling strip light —
   because no scenegen validation room showed the held-out hand rooms' losses under shrink.
+- glossy: a quick report for the glossy render mode (added 2026-12-06), three rooms each with a
+  glossy floor or a near-mirror in its test views: scenegen seeds 700010 and 700011 (used
+  nowhere else) with varied finishes, which keep the classic glossy floor and add a conductor
+  mirror and a lacquered cabinet — 700010: floor α 0.12, mirror 0.035, cabinet 0.05; 700011:
+  floor α 0.20, table top 0.05 (the brightest highlights of its test views), mirror 0.031,
+  cabinet 0.10 (their mirrors, on the north wall, are outside the test views) — and hand_room2
+  as in heldout (matte floor, mirror α 0.03 in two of its four test views, cabinet 0.05).
+  Pixels in the glossy mask (evaluate.py), per test view: 1–13 % in the scenegen rooms,
+  0–7 % in hand_room2.
 - tiny: one small room (the evaluation's own test).
 
 Per room OUT/<room>/ holds a scene (scene.json, meshes, images/ denoised as a camera's photos
@@ -67,6 +81,11 @@ SETS = {
         ("sg800004", "scenegen:800004", dict(light_views=3, tint="cold", finishes="sparse",
                                              proxy_error=0)),
         ("hand_room3", "tests/scenes/hand_room3", dict(tint="magenta")),
+    ],
+    "glossy": [
+        ("sg700010", "scenegen:700010", dict(light_views=2, tint="warm", finishes="varied")),
+        ("sg700011", "scenegen:700011", dict(light_views=1, tint="blue", finishes="varied")),
+        ("hand_room2", "tests/scenes/hand_room2", dict(tint="green")),
     ],
     "tiny": [
         ("sg700100", "scenegen:700100", dict(light_views=1, tint="red", views=6, res=(48, 36),

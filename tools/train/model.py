@@ -13,6 +13,12 @@ Structure (W = width):
                    tm(R), R the ratio-relit composite of eq. 5 formed from the input channels
                    (ratio_base; the engine's output pass forms the same); out_conv starts at
                    zero, so an untrained network renders the ratio image and training adds to it.
+                   base "glossy": the same correction added to tm(G), G glossy mode's image
+                   (the engine's frame/glossy.comp: eq. 5 on the photos' diffuse part plus the
+                   view-dependent layer fitted from the photos and their mirror images), which
+                   the input tensor cannot form: forward takes it (`relit dump` writes it as
+                   glossy_image; samples.py mixes it from the parts). Every key below applies
+                   to both bases alike.
                    base "none": the network's output is the image (the paper's formulation).
   shrink         : τ ≥ 0 (base "ratio" only): on covered pixels (I_1 not black) each correction
                    channel c becomes sign(c)·max(|c| − τ, 0), so corrections smaller than τ
@@ -58,7 +64,9 @@ import torch.nn.functional as F
 DEFAULT_CONFIG = dict(in_channels=66, width=66, trunk_blocks=4, levels=5, level_blocks=4,
                       tail_blocks=2, out_channels=6, base="none", shrink=0.0,
                       gate=0.0, gain=False, agree=0.0)
-BASES = ("none", "ratio")
+BASES = ("none", "ratio", "glossy")
+# Bases whose diffuse output is a correction of an image (the keys below apply to them).
+CORRECTING = ("ratio", "glossy")
 from constants import E_FLOOR as _E_FLOOR, GAIN_EPS, MU
 
 # Input channels (engine/src/frame/features.rs): I_1, E_src/π, E_add/π, E_rem/π, tonemapped.
@@ -197,13 +205,13 @@ class RelightNet(nn.Module):
         for key in ("shrink", "gate", "agree"):
             if not (c[key] >= 0 and math.isfinite(c[key])):
                 raise ValueError(f"{key} {c[key]!r}: expected a finite value >= 0")
-            if c[key] > 0 and c["base"] != "ratio":
-                raise ValueError(f"{key} applies to a network with base \"ratio\" only")
+            if c[key] > 0 and c["base"] not in CORRECTING:
+                raise ValueError(f"{key} applies to a network with base \"ratio\" or \"glossy\" only")
         if c["gain"] not in (False, True):
             raise ValueError(f"gain {c['gain']!r}: expected false or true")
         c["gain"] = bool(c["gain"])
-        if c["gain"] and c["base"] != "ratio":
-            raise ValueError("gain applies to a network with base \"ratio\" only")
+        if c["gain"] and c["base"] not in CORRECTING:
+            raise ValueError("gain applies to a network with base \"ratio\" or \"glossy\" only")
         self.config = c
         w = c["width"]
         total = c["trunk_blocks"] + c["levels"] * c["level_blocks"] + c["tail_blocks"]
@@ -213,14 +221,21 @@ class RelightNet(nn.Module):
         self.levels = nn.ModuleList([resnet(w, c["level_blocks"], total) for _ in range(c["levels"])])
         self.tail = resnet(w, c["tail_blocks"], total)
         self.out_conv = nn.Conv2d(w, c["out_channels"], 3, 1, 1)
-        if c["base"] == "ratio":
+        if c["base"] in CORRECTING:
             nn.init.zeros_(self.out_conv.weight)
             nn.init.zeros_(self.out_conv.bias)
 
-    def forward(self, x):
-        """[O_d, O_v] in tonemapped space: the raw output, plus the base on O_d."""
+    def forward(self, x, glossy=None):
+        """[O_d, O_v] in tonemapped space: the raw output, plus the base on O_d. `glossy`
+        (N×3×H×W, linear): glossy mode's image, the base of a network with base "glossy"; or
+        appended to x as three more channels (the trainer's batches, see train.batch)."""
+        n = self.config["in_channels"]
+        if glossy is None and x.shape[1] == n + 3:
+            x, glossy = x[:, :n], x[:, n:]
         y = self.raw(x)
-        if self.config["base"] == "ratio":
+        if self.config["base"] == "glossy" and glossy is None:
+            raise ValueError("a network with base \"glossy\" needs glossy mode's image")
+        if self.config["base"] in CORRECTING:
             cd, cv = y[:, :3], y[:, 3:]
             tau = self.config["shrink"]
             if tau > 0:
@@ -230,7 +245,7 @@ class RelightNet(nn.Module):
             w = gate_weight(x, self.config["gate"]) if self.config["gate"] > 0 else 1.0
             if self.config["agree"] > 0:
                 w = w * agreement_weight(x, self.config["agree"])
-            base = ratio_base(x)
+            base = ratio_base(x) if self.config["base"] == "ratio" else tm(glossy)
             diffuse = base + w * cd
             if self.config["gain"]:
                 lit = tm(untm(base) * torch.exp(w * log_gain(base, cd)))

@@ -8,7 +8,8 @@ added light alone at intensity 1), so the trainer can draw random intensities an
   python3 tools/train/samples.py --check PARTS.safetensors DUMP.safetensors
       assembles PARTS under DUMP's lighting (its relit.lighting metadata) and fails unless the
       input equals DUMP's within 1e-4 (and the targets, when both have them), and what the frame
-      draws on the declared original lights equals DUMP's ratio_image there.
+      draws on the declared original lights equals DUMP's ratio_image there, and glossy mode's
+      image (the base of a network with base "glossy") equals DUMP's glossy_image.
 """
 import argparse
 import json
@@ -17,7 +18,7 @@ import sys
 
 import numpy as np
 
-from constants import MU
+from constants import E_FLOOR, MU
 DTYPES = {"F32": np.float32, "F16": np.float16, "I64": np.int64, "I32": np.int32}
 
 
@@ -93,6 +94,25 @@ class Sample:
         surface = np.any(t["static"] != 0.0, axis=0)
         return np.where(surface[None], x, 0.0).astype(np.float32)
 
+    def glossy(self, alpha, intensities):
+        """Glossy mode's image (linear 3×H×W) under a lighting before any light is drawn:
+        the view-dependent layer's D relit by eq. 5 plus its S (frame/glossy.comp), which is
+        linear in the lighting but where the target mirror is the regressor (lobe 0): there
+        S = s·M_tgt, M_tgt as `mirror` assembles it. None for samples written before
+        `relit dump --parts` wrote the layer."""
+        t = self.t
+        if "glossy_d" not in t:
+            return None
+        e_src = t["e_src"]
+        e_add = sum(i * t[f"e_add.{n}"] for n, i in zip(self.lights, intensities))
+        diffuse = t["glossy_d"] / np.maximum(e_src, E_FLOOR) * (e_add + e_src - alpha * e_src)
+        s = (1.0 - alpha) * t["s_orig"]
+        for name, i in zip(self.lights, intensities):
+            s = s + i * t[f"s_add.{name}"]
+        m, _ = self.mirror(alpha, intensities)
+        s = np.where(t["glossy_lobe"] == 1.0, t["glossy_s"] * m, s)
+        return (diffuse + s).astype(np.float32)
+
     def drawn_lights(self, alpha, intensities):
         """(where, value): the pixels that show a declared original light (1×H×W bool) and what
         the frame draws there in every mode under a lighting (linear 3×H×W; emitters.glsl):
@@ -136,6 +156,11 @@ def check(parts_path, dump_path, tol=1e-4):
         e = np.abs(np.where(on, value - dump["ratio_image"], 0.0)).max() if n else 0.0
         e /= max(np.abs(dump["ratio_image"]).max(), 1e-6)
         print(f"drawn original lights: {n} pixels, max relative difference {e:.3g}")
+        ok &= e <= tol
+    g = s.glossy(lit["alpha_dim"], intens)
+    if g is not None and "glossy_image" in dump:
+        e = np.abs(g - dump["glossy_image"]).max() / max(np.abs(dump["glossy_image"]).max(), 1e-6)
+        print(f"glossy_image: max relative difference {e:.3g}")
         ok &= e <= tol
     if s.has_targets() and "target_diffuse" in dump:
         d, tot = s.targets(lit["alpha_dim"], intens)

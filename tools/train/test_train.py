@@ -553,7 +553,8 @@ class EvaluationTest(unittest.TestCase):
         self.assertIn("floor, net:zero: met in every room and lighting", r.stdout)
         self.assertIn("floor, fill:direct: met in every room and lighting", r.stdout)
         m = json.loads(read(os.path.join(out, "metrics.json")))
-        self.assertEqual(len(m["images"]), 18, "1 test view × 3 lightings × 6 modes")
+        self.assertEqual(len(m["images"]), 21, "1 test view × 3 lightings × 7 modes")
+        self.assertIn("floor, glossy:", r.stdout)
         per = {(x["lighting"], x["mode"]): x for x in m["rooms"]}
         for lt in ("eval_original", "eval_dimmed", "eval_alone"):
             z, ratio = per[(lt, "net:zero")], per[(lt, "ratio")]
@@ -589,6 +590,25 @@ class MetricsTest(unittest.TestCase):
         m = E.image_metrics(lambda a, b: [0.0], truth - 0.02, truth, truth, truth, covered,
                             np.zeros_like(covered))
         self.assertAlmostEqual(m["bias"], -0.02, places=6)
+
+    def test_glossy_share_is_the_part_of_the_true_highlight_the_image_adds(self):
+        import numpy as np
+        sys.path.insert(0, HERE)
+        import evaluate as E
+        diffuse = np.full((12, 16, 3), 0.2, np.float32)
+        spec = np.zeros_like(diffuse)
+        spec[3:7, 2:9] = [0.3, 0.2, 0.1]
+        truth = diffuse + spec
+        mask = spec.sum(-1) > 0
+        share = lambda img, m=mask: E.glossy_share(img, truth, diffuse, m)
+        self.assertAlmostEqual(share(diffuse + 0.5 * spec), 0.5, places=6)
+        self.assertAlmostEqual(share(truth), 1.0, places=6)
+        # Darker than the diffuse truth adds nothing (it does not cancel a highlight elsewhere).
+        self.assertAlmostEqual(share(diffuse - spec), 0.0, places=6)
+        self.assertIsNone(share(truth, np.zeros_like(mask)))
+        self.assertIsNone(E.glossy_share(truth, diffuse, diffuse, mask))
+        m = E.image_metrics(lambda a, b: [0.0], truth, truth, truth, truth, mask, mask, diffuse)
+        self.assertAlmostEqual(m["glossy_share"], 1.0, places=6)
 
 
 class PerceptualTest(unittest.TestCase):

@@ -67,11 +67,19 @@ def random_lighting(sample, rng):
     return alpha, intens
 
 
-def batch(sample, alpha, intens, crop, rng, device="cpu"):
+def batch(sample, alpha, intens, crop, rng, device="cpu", glossy=False):
     """(input, tm(diffuse), tm(total), lights) as 1×C×h×w tensors, a random crop (or the whole
     view). lights: 1×4×h×w, where a declared original light shows (channel 0: 1) and tm of what
-    the frame draws there (1–3), as draw_lights reads it; None for samples without light_glow."""
+    the frame draws there (1–3), as draw_lights reads it; None for samples without light_glow.
+    With `glossy` the input carries glossy mode's image (linear) as three more channels: the
+    base of a network with base "glossy" (model.py takes it from there)."""
     x = sample.input(alpha, intens)
+    if glossy:
+        g = sample.glossy(alpha, intens)
+        if g is None:
+            raise ValueError(f"{sample.path}: no view-dependent layer (written before relit dump "
+                             "--parts stored it): rebuild the dataset for --base glossy")
+        x = np.concatenate([x, g])
     d, t = sample.targets(alpha, intens)
     drawn = sample.drawn_lights(alpha, intens)
     h, w = x.shape[-2:]
@@ -109,9 +117,11 @@ def drawn_targets(d, t, lights):
 
 
 def ratio_image(x, lights=None):
-    """The engine's ratio mode as the trainer sees it: eq. 5's ratio image (tonemapped) with the
-    declared original lights drawn."""
-    return draw_lights(M.ratio_base(x), lights)
+    """The image the network corrects as the trainer sees it, tonemapped, with the declared
+    original lights drawn: eq. 5's ratio image (ratio mode), or glossy mode's image where the
+    batch carries it (three channels past the 66: base "glossy")."""
+    base = M.tm(x[:, 66:69]) if x.shape[1] == 69 else M.ratio_base(x)
+    return draw_lights(base, lights)
 
 
 def losses(out, d, t, lambda_vdep=10.0, vgg=None, lambda_vgg=0.0):
@@ -171,7 +181,8 @@ def validate(net, val, seed, device, vgg, lambda_vgg):
     with torch.no_grad():
         for s in val:
             for _ in range(3):
-                x, d, t, lights = batch(s, *random_lighting(s, rng), None, rng, device)
+                x, d, t, lights = batch(s, *random_lighting(s, rng), None, rng, device,
+                                        glossy=net.config["base"] == "glossy")
                 out = draw_lights(net(x), lights)
                 total += losses(out, *drawn_targets(d, t, lights), vgg=vgg, lambda_vgg=lambda_vgg).item()
                 n += 1
@@ -283,6 +294,8 @@ def parse_args():
                          "state and step, with this run's terms (ablations from a common point)")
     ap.add_argument("--base", choices=M.BASES, default="ratio",
                     help="ratio: the network corrects the ratio-relit composite (starts as it); "
+                         "glossy: it corrects glossy mode's image (the view-dependent layer; "
+                         "needs a dataset whose parts carry it); "
                          "none: the network's output is the image (the paper's formulation)")
     ap.add_argument("--init-weights", metavar="WEIGHTS",
                     help="start a new run's network from a weights file (e.g. the shipped one); "
@@ -420,11 +433,12 @@ def step_loss(a, net, disc, vgg, train, nbr, warps, i, lighting, rng, row):
     """The generator's loss of one step (eq. 8–12 as switched on) and the discriminator's input."""
     s = train[i]
     both = a.multiview > 0 and nbr[i] is not None
-    x, d, t, lights = batch(s, *lighting, None if both else a.crop, rng, a.device)
+    glossy = a.base == "glossy"
+    x, d, t, lights = batch(s, *lighting, None if both else a.crop, rng, a.device, glossy)
     d, t = drawn_targets(d, t, lights)
     if both:
         # The neighbour goes through the network in the same batch (one forward, one backward).
-        xb, _, _, lights_b = batch(train[nbr[i]], *lighting, None, rng, a.device)
+        xb, _, _, lights_b = batch(train[nbr[i]], *lighting, None, rng, a.device, glossy)
         outs = net(torch.cat([x, xb]))
         out = draw_lights(outs[:1], lights)
         outs = torch.cat([out, draw_lights(outs[1:], lights_b)])
@@ -457,17 +471,19 @@ def main():
     a = parse_args()
     if a.resume and a.init_from:
         sys.exit("--resume continues this run, --init-from starts one: pass one of them")
-    if a.correction_l1 and a.base != "ratio":
-        sys.exit("--correction-l1 needs --base ratio (a correction is relative to the ratio image)")
-    if (a.margin or a.floor) and a.base != "ratio":
-        sys.exit("--margin and --floor need --base ratio (they measure the image against the "
-                 "ratio image)")
-    if a.gate and a.base != "ratio":
-        sys.exit("--gate needs --base ratio (it scales the corrections to the ratio image)")
-    if a.gain and a.base != "ratio":
-        sys.exit("--gain needs --base ratio (it is a gain on the ratio image)")
-    if a.agree and a.base != "ratio":
-        sys.exit("--agree needs --base ratio (it scales the corrections to the ratio image)")
+    corrects = a.base in M.CORRECTING
+    if a.correction_l1 and not corrects:
+        sys.exit("--correction-l1 needs --base ratio or glossy (a correction is relative to the "
+                 "base image)")
+    if (a.margin or a.floor) and not corrects:
+        sys.exit("--margin and --floor need --base ratio or glossy (they measure the image "
+                 "against the base image)")
+    if a.gate and not corrects:
+        sys.exit("--gate needs --base ratio or glossy (it scales the corrections to the base)")
+    if a.gain and not corrects:
+        sys.exit("--gain needs --base ratio or glossy (it is a gain on the base image)")
+    if a.agree and not corrects:
+        sys.exit("--agree needs --base ratio or glossy (it scales the corrections to the base)")
     if a.threads:
         torch.set_num_threads(a.threads)
     torch.use_deterministic_algorithms(True)

@@ -104,7 +104,7 @@ impl Finding {
                 "no light found: {off} of the {all} clipped pixels see no surface of the proxy \
                  mesh, so they cannot be placed in 3D (a lamp on a ceiling or wall the mesh does \
                  not reach: a surface over sparse SfM points often lacks the ceiling). Give a mesh \
-                 that covers it (--mesh FILE) or declare the light by hand (README › Scene formats)"
+                 that covers it (--mesh FILE) or declare the light by hand (docs/formats.md)"
             )
         } else {
             format!(

@@ -1,10 +1,11 @@
 //! The novel-view frame (§4.2.2, §4.3, §4.4, §5): G-buffer of the proxy in the novel camera,
-//! reprojected composites, irradiance composites, target mirror, the 66-channel features, the
-//! network (or the ULR composite) and the output transform. One Rust file and one shader per
+//! reprojected composites, irradiance composites, target mirror, the view-dependent layer (glossy
+//! mode), the 66-channel features, the network (or the ULR composite) and the output transform. One Rust file and one shader per
 //! pass, each with a CPU reference on small inputs (tests/frame.rs).
 
 pub mod emitters;
 pub mod features;
+pub mod glossy;
 pub mod irradiance;
 pub mod live;
 pub mod maps;
@@ -444,12 +445,21 @@ pub enum Mode {
     /// Ratio where some input view sees the surface (`I_1` not black), the network's image in
     /// the holes no view sees, which ratio leaves black (needs weights).
     RatioFilled,
+    /// §3's L = a·E + S without the network: the photos' diffuse part relit by eq. 5 plus the
+    /// view-dependent layer fitted from the photos and their mirror images ([`glossy`]), so
+    /// highlights move with the view and a lamp shows its own; ratio's image where no fit holds.
+    Glossy,
 }
 
 impl Mode {
     /// Whether the frame runs the network in this mode.
     pub fn needs_network(self) -> bool {
         matches!(self, Mode::Network | Mode::RatioFilled)
+    }
+
+    /// Whether the frame runs the view-dependent layer ([`glossy`]) in this mode.
+    pub fn needs_glossy(self) -> bool {
+        matches!(self, Mode::Glossy)
     }
 }
 
@@ -461,6 +471,10 @@ pub struct FrameBuffers {
     pub comp: Buffer,
     pub irr: Buffer,
     pub mirror: Buffer,
+    /// The view-dependent layer: (D, s), (S, lobe + 1) per pixel ([`glossy`]).
+    pub glossy: Buffer,
+    /// The layer's per-pixel sums over the views, which its pass pools ([`glossy`]).
+    pub glossy_sums: Buffer,
     pub active: Buffer,
     /// The view culling's visibility bits and grid points (host-readable).
     pub cull_seen: Buffer,
@@ -495,6 +509,8 @@ pub struct Renderer {
     reproject: Pipeline,
     irradiance: Pipeline,
     target_mirror: Pipeline,
+    glossy_sums: Pipeline,
+    glossy: Pipeline,
     features: Pipeline,
     output: Pipeline,
     view_cull: Pipeline,
@@ -521,6 +537,7 @@ struct Pushes {
     reproject: reproject::Push,
     irradiance: irradiance::Push,
     target_mirror: target_mirror::Push,
+    glossy: glossy::Push,
     features: features::Push,
     output: output::Push,
 }
@@ -562,6 +579,8 @@ impl Renderer {
             reproject: Pipeline::compute(gpu, reproject::SHADER)?,
             irradiance: Pipeline::compute(gpu, irradiance::SHADER)?,
             target_mirror: Pipeline::compute(gpu, target_mirror::SHADER)?,
+            glossy_sums: Pipeline::compute(gpu, glossy::SUMS_SHADER)?,
+            glossy: Pipeline::compute(gpu, glossy::SHADER)?,
             features: Pipeline::compute(gpu, feat)?,
             output: Pipeline::compute(gpu, out)?,
             view_cull: Pipeline::compute(gpu, view_cull::SHADER)?,
@@ -614,6 +633,8 @@ impl Renderer {
             comp: buf("frame composites", reproject::PLANES as u64 * n * 8)?,
             irr: buf("frame irradiance", irradiance::PLANES as u64 * n * 16)?,
             mirror: buf("frame target mirror", n * 16)?,
+            glossy: buf("frame glossy layer", glossy::PLANES as u64 * n * 16)?,
+            glossy_sums: buf("frame glossy sums", glossy::SUM_PLANES as u64 * n * 16)?,
             active: buf("frame active views", MAX_ACTIVE as u64 * 4)?,
             cull_seen: readable(
                 "view culling bits",
@@ -732,9 +753,17 @@ impl Renderer {
                 bytes_of(&push.irradiance),
                 threads,
             )?;
-            if inputs {
+            let glossy = self.runs_glossy(mode);
+            if inputs || glossy {
                 let mirror = bytes_of(&push.target_mirror);
                 g.dispatch("target mirror", &self.target_mirror, mirror, threads)?;
+            }
+            if glossy {
+                let gl = bytes_of(&push.glossy);
+                g.dispatch("glossy sums", &self.glossy_sums, gl, threads)?;
+                g.dispatch("glossy layer", &self.glossy, gl, threads)?;
+            }
+            if inputs {
                 g.dispatch(
                     "features",
                     &self.features,
@@ -751,6 +780,13 @@ impl Renderer {
             g.dispatch("output", &self.output, bytes_of(&push.output), threads)
         })?;
         res
+    }
+
+    /// Whether a frame in `mode` runs the view-dependent layer: glossy mode, and the network
+    /// modes of a network whose base is glossy mode's image.
+    pub fn runs_glossy(&self, mode: Mode) -> bool {
+        let base = self.net.as_ref().map(|n| n.config.base);
+        mode.needs_glossy() || (mode.needs_network() && base == Some(crate::net::NetBase::Glossy))
     }
 
     /// What a frame needs before anything is recorded: weights for a network mode, one
@@ -825,6 +861,17 @@ impl Renderer {
                 live_mask,
                 norig,
             },
+            glossy: glossy::Push {
+                eye,
+                width,
+                height,
+                nactive,
+                view_w,
+                view_h,
+                nlights,
+                norig,
+                alpha_dim,
+            },
             features: features::Push { eye, width, height },
             output: output::Push {
                 width,
@@ -834,12 +881,14 @@ impl Renderer {
                     Mode::Ulr => 1,
                     Mode::Ratio => 2,
                     Mode::RatioFilled => 3,
+                    Mode::Glossy => 4,
                 },
                 exposure,
                 cam: cam.to_gpu(NEAR, FAR),
                 nlights,
                 base: match self.net.as_ref().map(|n| n.config.base) {
                     Some(crate::net::NetBase::Ratio) => 1,
+                    Some(crate::net::NetBase::Glossy) => 2,
                     _ => 0,
                 },
                 shrink: self.net.as_ref().map_or(0.0, |n| n.config.shrink),
@@ -951,6 +1000,8 @@ impl Renderer {
             .set("Comp", Bind::Buffer(&b.comp))
             .set("Irr", Bind::Buffer(&b.irr))
             .set("Mirror", Bind::Buffer(&b.mirror))
+            .set("Glossy", Bind::Buffer(&b.glossy))
+            .set("GlossySums", Bind::Buffer(&b.glossy_sums))
             .set("NetIn", Bind::Buffer(&b.input.buf))
             .set("NetOut", Bind::Buffer(&net_out.buf))
             .set("Hdr", Bind::Buffer(&b.hdr))

@@ -17,7 +17,7 @@ pub struct Push {
     pub exposure: f32,
     pub cam: GpuCamera,
     pub nlights: u32,
-    /// [`crate::net::NetBase`]: 0 none, 1 ratio.
+    /// [`crate::net::NetBase`]: 0 none, 1 ratio, 2 glossy.
     pub base: u32,
     /// [`crate::net::NetConfig::shrink`].
     pub shrink: f32,
@@ -96,7 +96,21 @@ pub fn reference_network(
     width: usize,
     has_surface: &[bool],
 ) -> Vec<[f32; 3]> {
-    use super::features::untonemap;
+    reference_network_on(net_out, ratio_input, None, c, width, has_surface)
+}
+
+/// [`reference_network`] with the base given: with `base_image` (linear, per pixel: glossy
+/// mode's image, a network with base "glossy") the diffuse channels correct tm of it instead of
+/// the ratio base; the keys read `input` as for base "ratio".
+pub fn reference_network_on(
+    net_out: &[f32],
+    ratio_input: Option<&[f32]>,
+    base_image: Option<&[[f32; 3]]>,
+    c: Corrections,
+    width: usize,
+    has_surface: &[bool],
+) -> Vec<[f32; 3]> {
+    use super::features::{tonemap, untonemap};
     let npix = has_surface.len();
     let agreement = match ratio_input {
         Some(x) if c.agree > 0.0 => agreement_weights(x, width, npix / width, c.agree),
@@ -107,7 +121,11 @@ pub fn reference_network(
             if !has_surface[p] {
                 return [0.0; 3];
             }
-            let base = ratio_input.map_or([0.0; 3], |x| ratio_base(x, npix, p));
+            let base = match (base_image, ratio_input) {
+                (Some(g), _) => g[p].map(tonemap),
+                (None, Some(x)) => ratio_base(x, npix, p),
+                (None, None) => [0.0; 3],
+            };
             let covered = ratio_input.is_some_and(|x| (0..3).any(|k| x[k * npix + p] != 0.0));
             let (t, w) = match ratio_input {
                 Some(x) if covered => (c.shrink, gate_weight(x, npix, p, c.gate) * agreement[p]),

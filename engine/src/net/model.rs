@@ -67,11 +67,21 @@ pub enum NetBase {
     /// The output corrects eq. 5's ratio-relit composite: an untrained (zero) output conv
     /// renders the ratio image, and training can only add to it.
     Ratio,
+    /// The output corrects glossy mode's image (§3's L = a·E + S: eq. 5 on the photos' diffuse
+    /// part plus the fitted view-dependent layer, [`crate::frame::glossy`]): an untrained
+    /// output conv renders it, highlights included.
+    Glossy,
 }
 
 impl NetBase {
     pub fn is_none(&self) -> bool {
         *self == NetBase::None
+    }
+
+    /// Whether the output corrects an image (ratio or glossy), so that the correction keys
+    /// (shrink, gate, gain, agree) apply.
+    pub fn corrects(&self) -> bool {
+        matches!(self, NetBase::Ratio | NetBase::Glossy)
     }
 }
 
@@ -155,19 +165,19 @@ impl SafetensorsParams {
             ("gate", cfg.gate),
             ("agree", cfg.agree),
         ] {
-            if !(v >= 0.0 && v.is_finite()) || (v > 0.0 && cfg.base != NetBase::Ratio) {
+            if !(v >= 0.0 && v.is_finite()) || (v > 0.0 && !cfg.base.corrects()) {
                 return Err(Error::input(
                     path,
                     format!(
-                        "metadata \"relit.net\": {name} {v} must be finite, >= 0, and 0 unless base is \"ratio\""
+                        "metadata \"relit.net\": {name} {v} must be finite, >= 0, and 0 unless base is \"ratio\" or \"glossy\""
                     ),
                 ));
             }
         }
-        if cfg.gain && cfg.base != NetBase::Ratio {
+        if cfg.gain && !cfg.base.corrects() {
             return Err(Error::input(
                 path,
-                "metadata \"relit.net\": gain must be false unless base is \"ratio\"",
+                "metadata \"relit.net\": gain must be false unless base is \"ratio\" or \"glossy\"",
             ));
         }
         Ok((

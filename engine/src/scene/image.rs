@@ -60,8 +60,16 @@ fn check_dims(path: &Path, w: u64, h: u64) -> Result<()> {
 
 /// Width and height from the header only.
 pub fn image_size(path: &Path) -> Result<(u32, u32)> {
-    if !path.exists() {
-        return Err(Error::input(path, "image file does not exist"));
+    // Not `path.exists()`: that is false for a symlink loop or a dangling link too, which the
+    // message must tell apart from a missing file.
+    if std::fs::metadata(path).is_err() {
+        return Err(Error::input(
+            path,
+            format!(
+                "cannot open the image file: {}",
+                super::files::describe_missing(path)
+            ),
+        ));
     }
     super::files::check(path, super::files::FileKind::Image)?;
     if is_exr(path) {
@@ -356,4 +364,40 @@ pub fn write_png_rgba8(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Res
     buf.save_with_format(&tmp, image::ImageFormat::Png)
         .map_err(|e| Error::input(path, format!("cannot write PNG: {e}")))?;
     std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::image_size;
+
+    /// A missing image, a symlink loop and a dangling link each get their own words.
+    #[test]
+    fn image_paths_that_are_no_file_say_what_they_are() {
+        use std::os::unix::fs::symlink;
+        let dir = std::env::temp_dir().join(format!("relit-image-links-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let err = |name: &str| image_size(&dir.join(name)).unwrap_err().to_string();
+
+        let e = err("missing.png");
+        assert!(
+            e.contains("missing.png") && e.contains("does not exist"),
+            "{e}"
+        );
+
+        symlink("loop.png", dir.join("loop.png")).unwrap();
+        let e = err("loop.png");
+        assert!(e.contains("loop.png") && e.contains("symlink loop"), "{e}");
+        assert!(!e.contains("does not exist"), "{e}");
+
+        symlink("a.exr", dir.join("b.exr")).unwrap();
+        symlink("b.exr", dir.join("a.exr")).unwrap();
+        let e = err("a.exr");
+        assert!(e.contains("symlink loop"), "a two-link loop: {e}");
+
+        symlink("gone.jpg", dir.join("dangling.jpg")).unwrap();
+        let e = err("dangling.jpg");
+        assert!(e.contains("dangling"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

@@ -1,4 +1,4 @@
-//! Relit's own scene format, `scene.json` (schema in the README). Also the `lights.json`
+//! Relit's own scene format, `scene.json` (schema in docs/formats.md). Also the `lights.json`
 //! sidecar that gives lights and presets to COLMAP and SIBR captures.
 
 use std::collections::BTreeMap;

@@ -24,7 +24,10 @@ pub const KEYS: &[(&str, &str)] = &[
         "F5",
         "save the lights and the lighting (preset \"viewer\") to scene.json",
     ),
-    ("M", "cycle the mode: network, ULR, ratio, ratio-filled"),
+    (
+        "M",
+        "cycle the mode: network, ULR, ratio, glossy, ratio-filled",
+    ),
     (
         "G",
         "frames: auto (cheap while moving, full when still), always full, always cheap",

@@ -1,0 +1,369 @@
+//! The view-dependent layer (§3: L = a·E + S): `shaders_glsl/frame/glossy_sums.comp` and
+//! `glossy.comp`. The photos that see a surface point are fitted as `I_j ≈ D + Σ_c w_c·X_j,c`
+//! (RGB D, grey w_c), X_j,c the declared original lights seen through a Gaussian lobe of width
+//! GLOSSY_LOBE_1..3 around view j's mirror direction. The first pass gathers each pixel's
+//! centred sums over the views; the second pools them over a 5×5 window of the same surface
+//! (the strengths serve a patch, D stays per pixel) and gives the diffuse part D, which eq. 5
+//! relights, and the view-dependent part S: the photos' own (I_1 − D), dimmed with their lights,
+//! plus each lit lamp through the lobes around the novel view's mirror direction. Glossy mode
+//! shows `D · (E_add + E_src − E_rem) / E_src + S` (`output.glsl`): ratio's image under the
+//! original lighting, and where no fit holds.
+
+use glam::Vec3;
+
+use super::RefInputs;
+use crate::bake::GpuLight;
+use crate::constants::{
+    GLOSSY_FIT, GLOSSY_FIT_RAMP, GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3, GLOSSY_MIN_VIEWS,
+    GLOSSY_SHARE, GLOSSY_SPREAD, GLOSSY_S_MAX,
+};
+use crate::gpu::shaders;
+use crate::scene::Mesh;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Push {
+    pub eye: [f32; 4],
+    pub width: u32,
+    pub height: u32,
+    pub nactive: u32,
+    pub view_w: u32,
+    pub view_h: u32,
+    pub nlights: u32,
+    pub norig: u32,
+    pub alpha_dim: f32,
+}
+
+/// Push as its shaders' push block declares it (tests/gpu.rs checks).
+pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
+    Push,
+    [shaders::FRAME_GLOSSY, shaders::FRAME_GLOSSY_SUMS],
+    [eye, width, height, nactive, view_w, view_h, nlights, norig, alpha_dim]
+);
+
+pub const SHADER: crate::gpu::Shader = shaders::FRAME_GLOSSY;
+pub const SUMS_SHADER: crate::gpu::Shader = shaders::FRAME_GLOSSY_SUMS;
+/// Planes of the output: (D, Σ w_c), (S, the leading lobe + 1).
+pub const PLANES: usize = 2;
+/// Regressors: the original lights through the three lobe widths.
+const LOBES: usize = 3;
+/// Original lights that take part in the fit (one shadow ray each per pixel).
+const MAX_ORIG: usize = 8;
+
+fn lobe_width(c: usize) -> f32 {
+    [GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3][c]
+}
+
+/// Centre, unit emitting normal and area of a light.
+fn light_frame(l: &GpuLight) -> (Vec3, Vec3, f32) {
+    let v = |a: [f32; 4]| Vec3::from_slice(&a[..3]);
+    if l.p0[3] < 0.5 {
+        let cr = v(l.p1).cross(v(l.p2));
+        (
+            v(l.p0) + 0.5 * (v(l.p1) + v(l.p2)),
+            cr.normalize(),
+            cr.length(),
+        )
+    } else {
+        let r = l.p2[0];
+        (v(l.p0), v(l.p1).normalize(), std::f32::consts::PI * r * r)
+    }
+}
+
+/// Whether x (normal n) sees light l's centre (one ray, stopped 5 cm short of it).
+pub fn sees_light(mesh: &Mesh, x: Vec3, n: Vec3, l: &GpuLight) -> bool {
+    let d = light_frame(l).0 - x;
+    let dist = d.length();
+    if d.dot(n) <= 0.0 || dist < 0.06 {
+        return false;
+    }
+    !crate::cpu::occluded(mesh, x + n * 1e-3, d / dist, 1e-3, dist - 0.05)
+}
+
+/// Light l's radiance from x through a normalized Gaussian lobe of width σ around unit r:
+/// L·Ω·exp(−θ²/2v)/(2πv), v = σ² + Ω/4π.
+pub fn lobe_light(x: Vec3, r: Vec3, sigma: f32, l: &GpuLight) -> Vec3 {
+    use std::f32::consts::PI;
+    let (c, nl, area) = light_frame(l);
+    let d = c - x;
+    let d2 = d.length_squared().max(1e-6);
+    let w = d / d2.sqrt();
+    let cosl = -nl.dot(w);
+    if cosl <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let omega = (area * cosl / d2).min(2.0 * PI);
+    let v = sigma * sigma + omega / (4.0 * PI);
+    let th = w.dot(r).clamp(-1.0, 1.0).acos();
+    Vec3::from_slice(&l.radiance[..3]) * (omega * (-th * th / (2.0 * v)).exp() / (2.0 * PI * v))
+}
+
+/// Planes of the sums pass: Σ|X − X̄|² and Σ(X − X̄)·(I − Ī) per lobe, (Σ|I − Ī|², views,
+/// original lights seen, spread threshold), X̄ under I_1's weights per lobe.
+pub const SUM_PLANES: usize = 3 + LOBES;
+/// The pooling window's radius (pixels).
+const RADIUS: i64 = 2;
+
+/// The sums pass's running sums over the views that see a point.
+#[derive(Default)]
+struct Sums {
+    x: [Vec3; LOBES],
+    wx: [Vec3; LOBES],
+    xx: [f32; LOBES],
+    xi: [f32; LOBES],
+    i: Vec3,
+    ii: f32,
+    n: f32,
+    w: f32,
+}
+
+impl Sums {
+    fn add(&mut self, col: Vec3, w1: f32, xs: [Vec3; LOBES]) {
+        for (c, xc) in xs.into_iter().enumerate() {
+            self.x[c] += xc;
+            self.wx[c] += w1 * xc;
+            self.xx[c] += xc.dot(xc);
+            self.xi[c] += xc.dot(col);
+        }
+        self.i += col;
+        self.ii += col.dot(col);
+        self.n += 1.0;
+        self.w += w1;
+    }
+
+    /// The pixel's planes (`SUM_PLANES` vec4), None with fewer than GLOSSY_MIN_VIEWS views.
+    fn planes(&self, seen: u32) -> Option<[[f32; 4]; SUM_PLANES]> {
+        if self.n < GLOSSY_MIN_VIEWS as f32 {
+            return None;
+        }
+        let im = self.i / self.n;
+        let mut out = [[0f32; 4]; SUM_PLANES];
+        for c in 0..LOBES {
+            let xm = self.x[c] / self.n;
+            out[0][c] = self.xx[c] - self.n * xm.dot(xm);
+            out[1][c] = self.xi[c] - self.n * xm.dot(im);
+            out[3 + c] = (self.wx[c] / self.w).extend(0.0).into();
+        }
+        let spread = GLOSSY_SPREAD * GLOSSY_SPREAD * im.dot(im) * self.n;
+        out[2] = [self.ii - self.n * im.dot(im), self.n, seen as f32, spread];
+        Some(out)
+    }
+}
+
+/// The normal mirror directions take at pixel p: the mean of the G-buffer normals (facing n)
+/// over the 7×7 pixels on the same surface (normals within ~25°, depth within 5 %;
+/// `lobe.glsl`'s `smooth_normal`): a proxy's noisy normals would scatter the highlights.
+pub fn smooth_normal(r: &RefInputs, p: usize, n: Vec3) -> Vec3 {
+    const RADIUS: i64 = 3;
+    let (w, h) = (r.width as i64, r.height as i64);
+    let (px, py, depth) = (p as i64 % w, p as i64 / w, r.gpos[p][3]);
+    let mut s = Vec3::ZERO;
+    for dy in -RADIUS..=RADIUS {
+        for dx in -RADIUS..=RADIUS {
+            let (qx, qy) = (px + dx, py + dy);
+            if qx < 0 || qy < 0 || qx >= w || qy >= h {
+                continue;
+            }
+            let q = (qy * w + qx) as usize;
+            let (g, nq) = (r.gpos[q], Vec3::from_slice(&r.gnrm[q][..3]));
+            let c = nq.dot(n);
+            if g[3] <= 0.0 || (g[3] - depth).abs() > 0.05 * depth || c.abs() < 0.9 {
+                continue;
+            }
+            s += if c < 0.0 { -nq } else { nq };
+        }
+    }
+    s.normalize()
+}
+
+/// The original lights (at most MAX_ORIG) that x sees, as bits.
+fn seen_originals(r: &RefInputs, mesh: &Mesh, x: Vec3, n: Vec3) -> u32 {
+    (r.originals.iter().take(MAX_ORIG).enumerate())
+        .filter(|(_, o)| sees_light(mesh, x, n, &o.light))
+        .fold(0, |m, (l, _)| m | 1 << l)
+}
+
+/// The seen original lights through lobe c around rd.
+fn lobe_originals(r: &RefInputs, seen: u32, x: Vec3, rd: Vec3, c: usize) -> Vec3 {
+    (r.originals.iter().take(MAX_ORIG).enumerate())
+        .filter(|(l, _)| seen & (1 << l) != 0)
+        .map(|(_, o)| lobe_light(x, rd, lobe_width(c), &o.light))
+        .sum()
+}
+
+/// CPU reference of the sums pass: `SUM_PLANES` planes of `width × height` vec4.
+pub fn sums_reference(r: &RefInputs, mesh: &Mesh, comp: &[[f32; 4]]) -> Vec<[f32; 4]> {
+    let npix = (r.width * r.height) as usize;
+    let mut out = vec![[0f32; 4]; SUM_PLANES * npix];
+    let (vw, vh) = (r.maps.width, r.maps.height);
+    for p in 0..npix {
+        let Some((x, n)) = r.surface(p).filter(|_| comp[p][..3] != [0.0; 3]) else {
+            continue;
+        };
+        let n = smooth_normal(r, p, n);
+        let seen = seen_originals(r, mesh, x, n);
+        if seen == 0 {
+            continue;
+        }
+        let mut sums = Sums::default();
+        for &j in r.active {
+            let ju = j as usize;
+            if r.data.visible_pixel(ju, x).is_none() {
+                continue;
+            }
+            let px = super::reproject::project_px(r.data, ju, x);
+            let col = super::maps::sample_bilinear(&r.maps.img[ju], vw, vh, px);
+            let ci = r.data.cameras[ju].center();
+            let e = r.eye - ci;
+            let rd = reflect((x - ci).normalize(), n);
+            let xs = [0, 1, 2].map(|c| lobe_originals(r, seen, x, rd, c));
+            sums.add(col, 1.0 / e.dot(e).max(1e-8), xs);
+        }
+        if let Some(planes) = sums.planes(seen) {
+            for (k, v) in planes.into_iter().enumerate() {
+                out[k * npix + p] = v;
+            }
+        }
+    }
+    out
+}
+
+/// The window's pooled (Σ|X − X̄|² per lobe, Σ(X − X̄)·(I − Ī) per lobe, Σ|I − Ī|², spread) at
+/// pixel p: the neighbours with sums, within 5 % of p's depth, normals within ~25°.
+fn pooled(r: &RefInputs, sums: &[[f32; 4]], p: usize) -> ([f32; 4], [f32; 4], f32, f32) {
+    let (w, h, npix) = (
+        r.width as i64,
+        r.height as i64,
+        (r.width * r.height) as usize,
+    );
+    let (px, py) = (p as i64 % w, p as i64 / w);
+    let (depth, n) = (r.gpos[p][3], Vec3::from_slice(&r.gnrm[p][..3]));
+    let (mut cxx, mut cxi, mut cii, mut spread) = ([0f32; 4], [0f32; 4], 0.0, 0.0);
+    for dy in -RADIUS..=RADIUS {
+        for dx in -RADIUS..=RADIUS {
+            let (qx, qy) = (px + dx, py + dy);
+            if qx < 0 || qy < 0 || qx >= w || qy >= h {
+                continue;
+            }
+            let q = (qy * w + qx) as usize;
+            let s2 = sums[2 * npix + q];
+            let nq = Vec3::from_slice(&r.gnrm[q][..3]);
+            if s2[1] == 0.0 || (r.gpos[q][3] - depth).abs() > 0.05 * depth || nq.dot(n).abs() < 0.9
+            {
+                continue;
+            }
+            for c in 0..LOBES {
+                cxx[c] += sums[q][c];
+                cxi[c] += sums[npix + q][c];
+            }
+            cii += s2[0];
+            spread += s2[3];
+        }
+    }
+    (cxx, cxi, cii, spread)
+}
+
+/// Each lobe's strength w_c = κ·ω_c·s_c at pixel p from the pooled sums (`glossy.comp`'s
+/// `lobe_strengths`): s_c the lobe's slope, e_c the share of the variance it explains, ω_c ∝
+/// max(e_c − GLOSSY_FIT, 0)⁴, κ = clamp((max e − GLOSSY_FIT) / GLOSSY_FIT_RAMP, 0, 1); None
+/// without a fit.
+fn strengths(r: &RefInputs, sums: &[[f32; 4]], p: usize) -> Option<[f32; LOBES]> {
+    let (cxx, cxi, cii, spread) = pooled(r, sums, p);
+    if cii <= spread.max(1e-8) {
+        return None;
+    }
+    let (mut s, mut om, mut best) = ([0f32; LOBES], [0f32; LOBES], 0f32);
+    for c in 0..LOBES {
+        if cxx[c] <= 1e-8 {
+            continue;
+        }
+        s[c] = (cxi[c] / cxx[c]).clamp(0.0, GLOSSY_S_MAX);
+        let e = (2.0 * s[c] * cxi[c] - s[c] * s[c] * cxx[c]) / cii;
+        // What the lobe explains must itself exceed the spread threshold.
+        if s[c] > 0.0 && e * cii > spread {
+            om[c] = (e - GLOSSY_FIT).max(0.0).powi(4);
+            best = best.max(e);
+        }
+    }
+    let total: f32 = om.iter().sum();
+    if total <= 0.0 {
+        return None;
+    }
+    let kappa = ((best - GLOSSY_FIT) / GLOSSY_FIT_RAMP).clamp(0.0, 1.0);
+    Some([0, 1, 2].map(|c| kappa * s[c] * om[c] / total))
+}
+
+/// CPU reference of the layer pass: 2 planes of `width × height` vec4, from the frame's
+/// composites (I_1, I_8) and glossy sums as the passes wrote them.
+pub fn reference(
+    r: &RefInputs,
+    mesh: &Mesh,
+    comp: &[[f32; 4]],
+    sums: &[[f32; 4]],
+) -> Vec<[f32; 4]> {
+    let npix = (r.width * r.height) as usize;
+    let mut out = vec![[0f32; 4]; PLANES * npix];
+    for p in 0..npix {
+        let i1 = Vec3::from_slice(&comp[p][..3]);
+        let Some((x, n)) = r.surface(p).filter(|_| i1 != Vec3::ZERO) else {
+            continue;
+        };
+        out[p] = [i1.x, i1.y, i1.z, 0.0];
+        if sums[2 * npix + p][1] == 0.0 {
+            continue;
+        }
+        let Some(mut w) = strengths(r, sums, p).filter(|w| w.iter().any(|&v| v > 0.0)) else {
+            continue;
+        };
+        // At most GLOSSY_SHARE of I_1's luminance is called view-dependent, and D stays at or
+        // above the darkest photo (I_8).
+        let xm: Vec3 = (0..LOBES)
+            .map(|c| w[c] * Vec3::from_slice(&sums[(3 + c) * npix + p][..3]))
+            .sum();
+        let lum = super::reproject::luminance;
+        let cap = (GLOSSY_SHARE * lum(i1) / lum(xm).max(1e-8)).min(1.0);
+        w = w.map(|v| v * cap);
+        let i8 = Vec3::from_slice(&comp[7 * npix + p][..3]);
+        let d = (i1 - cap * xm).max(i8.min(i1)).max(Vec3::ZERO);
+        let n = smooth_normal(r, p, n);
+        let st = (1.0 - r.alpha_dim) * (i1 - d) + lamps(r, mesh, (x, n), w);
+        let lead = (0..LOBES).fold(0, |b, c| if w[c] > w[b] { c } else { b });
+        out[p] = [d.x, d.y, d.z, w.iter().sum()];
+        out[npix + p] = [st.x, st.y, st.z, (lead + 1) as f32];
+    }
+    out
+}
+
+/// Σ_L i_L Σ_c w_c·X_L,c: the lit lamps x sees through the lobes around the novel view's
+/// mirror direction.
+fn lamps(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> Vec3 {
+    let rd = reflect((x - r.eye).normalize(), n);
+    let mut s = Vec3::ZERO;
+    for (l, e) in r.emitters.iter().enumerate() {
+        let k = r.intensities.get(l).copied().unwrap_or(0.0);
+        if k > 0.0 && sees_light(mesh, x, n, e) {
+            for c in (0..LOBES).filter(|&c| w[c] > 0.0) {
+                s += w[c] * k * lobe_light(x, rd, lobe_width(c), e);
+            }
+        }
+    }
+    s
+}
+
+fn reflect(v: Vec3, n: Vec3) -> Vec3 {
+    v - 2.0 * n.dot(v) * n
+}
+
+/// CPU reference of glossy mode from the glossy planes and the irradiance planes:
+/// `D / max(E_src, E_FLOOR) · (E_add + E_src − E_rem) + S`.
+pub fn reference_image(glossy: &[[f32; 4]], irr: &[[f32; 4]], npix: usize) -> Vec<[f32; 3]> {
+    (0..npix)
+        .map(|p| {
+            let (d, s) = (glossy[p], glossy[npix + p]);
+            let (es, ea, er) = (irr[p], irr[npix + p], irr[2 * npix + p]);
+            [0, 1, 2].map(|k| {
+                d[k] / es[k].max(crate::constants::E_FLOOR) * (ea[k] + es[k] - er[k]) + s[k]
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,87 @@
+#version 460
+// The view-dependent layer's fit, first half (§3: L = a·E + S; frame/glossy.comp pools and
+// solves). At each novel-view pixel the input views j that see the surface point x give a
+// photo value I_j and three regressors X_j,c: the declared original lights x sees, through a
+// Gaussian lobe of width GLOSSY_LOBE_1..3 around view j's mirror direction (lobe.glsl; the
+// normal smoothed over the surface around x, `smooth_normal`). For the model I_j = D + s·X_j
+// (RGB D, grey s) it writes the centred sums a window can pool:
+//   plane 0: Σ|X − X̄|² per lobe;  plane 1: Σ(X − X̄)·(I − Ī) per lobe;
+//   plane 2: (Σ|I − Ī|², views, original lights seen (bits), GLOSSY_SPREAD²·|Ī|²·views);
+//   planes 3–5: X̄ of each lobe under I_1's view weights (D = I_1 − s·X̄ keeps I_1's blend).
+// All zero where fewer than GLOSSY_MIN_VIEWS views see x or I_1 is black.
+#extension GL_EXT_ray_query : require
+#extension GL_EXT_scalar_block_layout : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
+#extension GL_EXT_shader_explicit_arithmetic_types_float16 : require
+#extension GL_EXT_shader_16bit_storage : require
+#extension GL_GOOGLE_include_directive : require
+
+layout(local_size_x = 64) in;
+
+#include "frame.glsl"
+#include "emitters.glsl"
+
+layout(set = 0, binding = 6) readonly buffer Active { uint active_views[]; };
+layout(set = 0, binding = 7) uniform sampler2DArray tex_img;
+layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
+layout(set = 0, binding = 13) readonly buffer Comp { f16vec4 comp[]; };
+layout(set = 0, binding = 31) writeonly buffer GlossySums { vec4 sums[]; };
+
+layout(push_constant) uniform Push {
+    vec4 eye;
+    uint width; uint height; uint nactive; uint view_w; uint view_h;
+    uint nlights; uint norig; float alpha_dim;
+} pc;
+
+#include "lobe.glsl"
+
+const uint PLANES = 3u + LOBES;
+
+void main() {
+    uint p = gl_GlobalInvocationID.x;
+    uint npix = pc.width * pc.height;
+    if (p >= npix) return;
+    for (uint k = 0u; k < PLANES; ++k) sums[k * npix + p] = vec4(0.0);
+    vec3 x, n;
+    float depth;
+    if (pc.norig == 0u || !surface(p, pc.width, pc.eye.xyz, x, n, depth)
+        || all(equal(vec3(comp[p].rgb), vec3(0.0)))) return;
+    n = smooth_normal(ivec2(p % pc.width, p / pc.width), n, depth);
+    uint seen = 0u;
+    for (uint l = 0u; l < min(pc.norig, MAX_ORIG); ++l)
+        if (sees_light(x, n, originals[l].light)) seen |= 1u << l;
+    if (seen == 0u) return;
+    vec3 sx[LOBES], swx[LOBES];
+    float sxx[LOBES], sxi[LOBES];
+    for (uint c = 0u; c < LOBES; ++c) { sx[c] = vec3(0.0); swx[c] = vec3(0.0); sxx[c] = 0.0; sxi[c] = 0.0; }
+    vec3 si = vec3(0.0);
+    float sii = 0.0, cnt = 0.0, sw = 0.0;
+    for (uint a = 0u; a < pc.nactive; ++a) {
+        uint j = active_views[a];
+        if (visible_pixel(j, x, pc.view_w, pc.view_h) < 0) continue;
+        vec3 col = sample_map(tex_img, project_px(j, x), j);
+        vec3 ci = cam_center(cams[j]);
+        vec3 e = pc.eye.xyz - ci;
+        float w1 = 1.0 / max(dot(e, e), 1e-8);
+        vec3 r = reflect(normalize(x - ci), n);
+        for (uint c = 0u; c < LOBES; ++c) {
+            vec3 xc = lobe_originals(x, r, c, seen);
+            sx[c] += xc; swx[c] += w1 * xc; sxx[c] += dot(xc, xc); sxi[c] += dot(xc, col);
+        }
+        si += col; sii += dot(col, col); cnt += 1.0; sw += w1;
+    }
+    if (cnt < float(GLOSSY_MIN_VIEWS)) return;
+    vec3 im = si / cnt;
+    vec4 cxx = vec4(0.0), cxi = vec4(0.0);
+    for (uint c = 0u; c < LOBES; ++c) {
+        vec3 xm = sx[c] / cnt;
+        cxx[c] = sxx[c] - cnt * dot(xm, xm);
+        cxi[c] = sxi[c] - cnt * dot(xm, im);
+        sums[(3u + c) * npix + p] = vec4(swx[c] / sw, 0.0);
+    }
+    sums[p] = cxx;
+    sums[npix + p] = cxi;
+    float spread = GLOSSY_SPREAD * GLOSSY_SPREAD * dot(im, im) * cnt;
+    sums[2u * npix + p] = vec4(sii - cnt * dot(im, im), cnt, float(seen), spread);
+}

@@ -1,0 +1,92 @@
+// Lights seen through a glossy lobe (frame/glossy_sums.comp, frame/glossy.comp): a surface point's
+// shadow ray to a light and the light's radiance through a normalized Gaussian lobe.
+// Needs: tlas, the Originals, Emitters and Intensity buffers (emitters.glsl) and the push
+// constants norig, nlights, alpha_dim.
+#ifndef RELIT_LOBE_GLSL
+#define RELIT_LOBE_GLSL
+
+const uint LOBES = 3u;     // regressors: the original lights through three lobe widths
+const uint MAX_ORIG = 8u;  // original lights that take part in the fit (shadow rays per pixel)
+
+float lobe_width(uint c) {
+    return c == 0u ? GLOSSY_LOBE_1 : (c == 1u ? GLOSSY_LOBE_2 : GLOSSY_LOBE_3);
+}
+
+// A light's centre, unit emitting normal and area.
+void light_frame(Light l, out vec3 c, out vec3 nl, out float area) {
+    if (l.p0.w < 0.5) {
+        vec3 cr = cross(l.p1.xyz, l.p2.xyz);
+        area = length(cr);
+        nl = cr / area;
+        c = l.p0.xyz + 0.5 * (l.p1.xyz + l.p2.xyz);
+    } else {
+        nl = normalize(l.p1.xyz);
+        area = 3.14159265358979 * l.p2.x * l.p2.x;
+        c = l.p0.xyz;
+    }
+}
+
+// Whether x (normal n) sees light l's centre: one ray, stopped 5 cm short of the light (a
+// declared light sits on the proxy surface).
+bool sees_light(vec3 x, vec3 n, Light l) {
+    vec3 c, nl;
+    float area;
+    light_frame(l, c, nl, area);
+    vec3 d = c - x;
+    float dist = length(d);
+    if (dot(d, n) <= 0.0 || dist < 0.06) return false;
+    rayQueryEXT rq;
+    rayQueryInitializeEXT(rq, tlas, gl_RayFlagsOpaqueEXT | gl_RayFlagsTerminateOnFirstHitEXT, 0xFF,
+                          x + n * 1e-3, 1e-3, d / dist, dist - 0.05);
+    while (rayQueryProceedEXT(rq)) {}
+    return rayQueryGetIntersectionTypeEXT(rq, true) == gl_RayQueryCommittedIntersectionNoneEXT;
+}
+
+// Light l's radiance seen from x through a normalized Gaussian lobe of width σ around unit r:
+// L·Ω·exp(−θ²/2v)/(2πv), v = σ² + Ω/4π (the light as a Gaussian of its own solid angle Ω).
+vec3 lobe_light(vec3 x, vec3 r, float sigma, Light l) {
+    const float PI = 3.14159265358979;
+    vec3 c, nl;
+    float area;
+    light_frame(l, c, nl, area);
+    vec3 d = c - x;
+    float d2 = max(dot(d, d), 1e-6);
+    vec3 w = d * inversesqrt(d2);
+    float cosl = -dot(nl, w);
+    if (cosl <= 0.0) return vec3(0.0);
+    float omega = min(area * cosl / d2, 2.0 * PI);
+    float v = sigma * sigma + omega / (4.0 * PI);
+    float th = acos(clamp(dot(w, r), -1.0, 1.0));
+    return l.radiance.rgb * (omega * exp(-th * th / (2.0 * v)) / (2.0 * PI * v));
+}
+
+// The surface normal a mirror direction takes at pixel xy: the mean of the G-buffer normals
+// (facing n) over the (2·NORMAL_RADIUS + 1)² pixels on the same surface (normals within ~25°,
+// depth within 5 %). A proxy from photos has noisy normals, and a 10° tilt moves a highlight
+// by more than a lobe's width.
+const int NORMAL_RADIUS = 3;
+vec3 smooth_normal(ivec2 xy, vec3 n, float depth) {
+    vec3 s = vec3(0.0);
+    for (int dy = -NORMAL_RADIUS; dy <= NORMAL_RADIUS; ++dy) {
+        for (int dx = -NORMAL_RADIUS; dx <= NORMAL_RADIUS; ++dx) {
+            ivec2 q = xy + ivec2(dx, dy);
+            if (any(lessThan(q, ivec2(0))) || q.x >= int(pc.width) || q.y >= int(pc.height)) continue;
+            vec4 g = imageLoad(g_pos, q);
+            vec3 nq = imageLoad(g_nrm, q).xyz;
+            float c = dot(nq, n);
+            if (g.w <= 0.0 || abs(g.w - depth) > 0.05 * depth || abs(c) < 0.9) continue;
+            s += c < 0.0 ? -nq : nq;
+        }
+    }
+    return normalize(s);
+}
+
+// The original lights x sees (bit l of `seen`), through lobe c around r, as photographed.
+vec3 lobe_originals(vec3 x, vec3 r, uint c, uint seen) {
+    vec3 s = vec3(0.0);
+    for (uint l = 0u; l < min(pc.norig, MAX_ORIG); ++l)
+        if ((seen & (1u << l)) != 0u) s += lobe_light(x, r, lobe_width(c), originals[l].light);
+    return s;
+}
+
+#endif

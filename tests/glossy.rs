@@ -1,0 +1,428 @@
+//! The view-dependent layer (§3, `frame/glossy.comp`) and glossy mode on a small room whose
+//! floor is glossy: its photos hold the diffuse shading plus S_TRUE × the ceiling panel seen
+//! through a lobe of width GLOSSY_LOBE_2 around each view's mirror direction. The layer must
+//! match its CPU reference, find that lobe in the photos, give ratio's image back under the
+//! original lighting, and put a lamp's highlight where the mirror direction puts it, also after
+//! the lamp moves. Validation on.
+
+mod common;
+
+use glam::{Vec2, Vec3};
+use relit_engine::bake::GpuLight;
+use relit_engine::constants::GLOSSY_LOBE_2;
+use relit_engine::frame::{
+    emitters, glossy, irradiance, FrameScene, HostMaps, Lighting, MapFormat, Mode, RefInputs,
+    Renderer,
+};
+use relit_engine::net::Storage;
+use relit_engine::scene::synth::{self, SynthOptions};
+use relit_engine::scene::{Camera, Light, LightShape, Mesh};
+
+/// The floor's specular strength in the photos.
+const S_TRUE: f32 = 0.5;
+
+struct Room {
+    mesh: Mesh,
+    cams: Vec<Camera>,
+    host: HostMaps,
+    novel: Camera,
+    /// The added lamp (a small disk facing down) and the ceiling panel (original).
+    lights: Vec<Light>,
+}
+
+fn lamp_at(center: Vec3) -> Light {
+    Light {
+        name: "lamp".into(),
+        shape: LightShape::Disk {
+            center,
+            normal: Vec3::NEG_Y,
+            radius: 0.12,
+        },
+        radiance: [40.0, 32.0, 24.0],
+        original: false,
+        estimated: false,
+    }
+}
+
+/// Per view pixel: the surface point and its normal facing the camera.
+fn surface_points(mesh: &Mesh, c: &Camera) -> Vec<Option<(Vec3, Vec3)>> {
+    let mut v = Vec::new();
+    for y in 0..c.height {
+        for x in 0..c.width {
+            let d = c.ray_dir(Vec2::new(x as f32 + 0.5, y as f32 + 0.5));
+            v.push(
+                relit_engine::cpu::closest_hit(mesh, c.center(), d, 0.0, 1e4).map(|h| {
+                    let mut n = mesh.face_normal(h.tri as usize);
+                    if n.dot(d) > 0.0 {
+                        n = -n;
+                    }
+                    (c.center() + d * h.t, n)
+                }),
+            );
+        }
+    }
+    v
+}
+
+fn room() -> Room {
+    let o = SynthOptions {
+        views: 24,
+        width: 40,
+        height: 30,
+        seed: 5,
+        wall_subdiv: 2,
+    };
+    let (mesh, albedo) = synth::room(o.wall_subdiv);
+    // The procedural room's ceiling panel, declared facing down (its emitting side).
+    let panel = Light {
+        name: "ceiling".into(),
+        shape: LightShape::Quad {
+            corner: Vec3::new(-0.4, 2.59, -0.3),
+            edge_u: Vec3::new(0.8, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, 0.6),
+        },
+        radiance: [8.0, 7.6, 7.0],
+        original: true,
+        estimated: false,
+    };
+    let gpanel = GpuLight::new(&panel);
+    let cams = synth::capture_cameras(&o);
+    let mut host = HostMaps {
+        width: o.width,
+        height: o.height,
+        ..Default::default()
+    };
+    for c in &cams {
+        let img = synth::shade(&mesh, &albedo, c, &panel);
+        let pts = surface_points(&mesh, c);
+        let photo = (img.pixels.iter().zip(&pts))
+            .map(|(d, s)| {
+                let g = match s {
+                    Some((x, n)) if n.y > 0.9 && glossy::sees_light(&mesh, *x, *n, &gpanel) => {
+                        let r = (*x - c.center()).normalize();
+                        let r = r - 2.0 * n.dot(r) * *n;
+                        S_TRUE * glossy::lobe_light(*x, r, GLOSSY_LOBE_2, &gpanel)
+                    }
+                    _ => Vec3::ZERO,
+                };
+                [d[0] + g.x, d[1] + g.y, d[2] + g.z, 1.0]
+            })
+            .collect();
+        host.img.push(photo);
+        let field = |f: &dyn Fn(Vec3) -> [f32; 4]| -> Vec<[f32; 4]> {
+            pts.iter()
+                .map(|s| s.map_or([0.0; 4], |(x, _)| f(x)))
+                .collect()
+        };
+        host.msrc
+            .push(field(&|p| [0.2 + 0.05 * p.x.sin(), 0.25, 0.2, 1.0]));
+        host.esrc
+            .push(field(&|p| [2.0 + 0.2 * p.x, 2.2, 2.4 + 0.1 * p.z, 1.0]));
+    }
+    for c in &cams {
+        let pts = surface_points(&mesh, c);
+        host.eadd.push(
+            pts.iter()
+                .map(|s| s.map_or([0.0; 4], |(x, _)| [1.0 + 0.1 * x.x, 0.9, 0.8, 1.0]))
+                .collect(),
+        );
+    }
+    let eye = Vec3::new(-0.9, 1.6, -1.1);
+    let novel = Camera::look_at(eye, Vec3::new(0.4, 0.0, 0.3), Vec3::Y, 48, 36, 30.0);
+    let lights = vec![lamp_at(Vec3::new(0.0, 2.0, 0.0)), panel];
+    Room {
+        mesh,
+        cams,
+        host,
+        novel,
+        lights,
+    }
+}
+
+fn renderer(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>, t: &Room) -> Renderer {
+    let fs = FrameScene::from_parts(
+        gpu,
+        &t.mesh,
+        &t.cams,
+        &t.host,
+        &t.lights,
+        MapFormat::Rgba32f,
+    )
+    .unwrap();
+    // The albedo mesh is a bake product (live lights read it); a known grey stands in.
+    let mut fs = fs;
+    fs.albedo = Some(vec![[0.5, 0.5, 0.5, 1.0]; t.mesh.positions.len()]);
+    Renderer::new(gpu, fs, None, Storage::F32).unwrap()
+}
+
+/// The last frame's planes of a buffer.
+fn planes(buf: &relit_engine::gpu::Buffer, n: usize) -> Vec<[f32; 4]> {
+    let mut v: Vec<[f32; 4]> = buf.download_vec().unwrap();
+    v.truncate(n);
+    v
+}
+
+#[test]
+fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
+    let gpu = common::gpu();
+    let t = room();
+    let mut r = renderer(&gpu, &t);
+    let lighting = Lighting {
+        intensities: vec![0.8],
+        alpha_dim: 0.5,
+    };
+    r.render(&t.novel, &lighting, Mode::Glossy, 1.0, None)
+        .unwrap();
+    let npix = (t.novel.width * t.novel.height) as usize;
+    let b = r.buffers_ref().unwrap();
+    let g = b.gbuf.download().unwrap();
+    let comp = b.composites().unwrap();
+    let irr = planes(&b.irr, irradiance::PLANES * npix);
+    let gl = planes(&b.glossy, glossy::PLANES * npix);
+    let active = r.active_views().to_vec();
+    let inputs = RefInputs {
+        data: &r.scene.data,
+        maps: &t.host,
+        gpos: &g.pos_depth,
+        gnrm: &g.normal,
+        width: t.novel.width,
+        height: t.novel.height,
+        eye: t.novel.center(),
+        active: &active,
+        intensities: &lighting.intensities,
+        alpha_dim: lighting.alpha_dim,
+        exclude: None,
+        emitters: &r.scene.emitters,
+        originals: &r.scene.originals,
+        live: None,
+    };
+    // The sums over the views: 1% of each plane's scale on ≥ 97% of the pixels (bilinear
+    // weights on lavapipe are 8-bit fixed point; the depth test can flip at edges).
+    let sums = planes(&b.glossy_sums, glossy::SUM_PLANES * npix);
+    let sums_want = glossy::sums_reference(&inputs, &t.mesh, &comp);
+    for k in 0..glossy::SUM_PLANES {
+        let s = k * npix..(k + 1) * npix;
+        let scale = (sums_want[s.clone()].iter().flat_map(|p| p.iter()))
+            .fold(1e-6f32, |m, v| m.max(v.abs()));
+        let bad = (sums[s.clone()].iter().zip(&sums_want[s]))
+            .filter(|(a, b)| (0..4).any(|c| (a[c] - b[c]).abs() > 0.01 * scale))
+            .count();
+        assert!(
+            bad * 100 <= 3 * npix,
+            "glossy sums plane {k}: {bad} of {npix} pixels differ"
+        );
+    }
+    // The layer from the GPU's own sums.
+    let want = glossy::reference(&inputs, &t.mesh, &comp, &sums);
+    // The choice of lobe can flip where two explain the views almost equally; bilinear weights
+    // on lavapipe are 8-bit fixed point: 1% of the plane's scale on ≥ 97% of the pixels.
+    for k in 0..glossy::PLANES {
+        let s = k * npix..(k + 1) * npix;
+        let scale = (want[s.clone()].iter().flat_map(|p| p[..3].iter()))
+            .fold(1e-6f32, |m, v| m.max(v.abs()));
+        let bad = (gl[s.clone()].iter().zip(&want[s]))
+            .filter(|(a, b)| (0..3).any(|c| (a[c] - b[c]).abs() > 0.01 * scale))
+            .count();
+        assert!(
+            bad * 100 <= 3 * npix,
+            "glossy plane {k}: {bad} of {npix} pixels differ"
+        );
+    }
+    // The floor's fit: most floor pixels fitted, led by the photos' lobe (GLOSSY_LOBE_2: the
+    // second, plane value 2), D between the darkest photo and I_1.
+    let floor: Vec<usize> = (0..npix)
+        .filter(|&p| g.pos_depth[p][3] > 0.0 && g.pos_depth[p][1].abs() < 1e-3)
+        .collect();
+    assert!(floor.len() * 3 > npix, "the novel view looks at the floor");
+    let fitted: Vec<usize> = floor
+        .iter()
+        .copied()
+        .filter(|&p| gl[npix + p][3] > 0.0)
+        .collect();
+    // Where enough views see the point and the panel, its sums hold views.
+    let fittable = floor
+        .iter()
+        .filter(|&&p| sums[2 * npix + p][1] > 0.0)
+        .count();
+    assert!(
+        fittable * 3 > floor.len(),
+        "{fittable} of {} floor pixels have sums",
+        floor.len()
+    );
+    // Many of them see the panel through no view's lobe: their photos agree (within
+    // GLOSSY_SPREAD) and are rightly taken as diffuse. A fifth must hold a fit.
+    assert!(
+        fitted.len() * 5 >= fittable,
+        "{} of {fittable} floor pixels fitted",
+        fitted.len()
+    );
+    let led = fitted.iter().filter(|&&p| gl[npix + p][3] == 2.0).count();
+    assert!(
+        led * 10 >= fitted.len() * 8,
+        "{led} of {} fits led by lobe 2",
+        fitted.len()
+    );
+    for &p in &fitted {
+        for k in 0..3 {
+            let lo = comp[7 * npix + p][k].min(comp[p][k]);
+            assert!(
+                gl[p][k] <= comp[p][k] + 1e-6 && gl[p][k] >= lo - 1e-6,
+                "D at pixel {p}"
+            );
+        }
+    }
+    // Vertical surfaces are diffuse in the photos: (almost) no fit there.
+    let walls = (0..npix).filter(|&p| g.pos_depth[p][3] > 0.0 && g.normal[p][1].abs() < 0.1);
+    let (nw, wf) = walls.fold((0, 0), |(n, f), p| {
+        (n + 1, f + (gl[npix + p][3] > 0.0) as usize)
+    });
+    assert!(wf * 20 <= nw, "{wf} of {nw} wall pixels fitted");
+
+    // Glossy mode: D relit by eq. 5 plus S, the lights drawn over it.
+    let hdr = r.hdr().unwrap();
+    let image = glossy::reference_image(&gl, &irr, npix);
+    let image: Vec<[f32; 3]> = (0..npix)
+        .map(|p| {
+            if g.pos_depth[p][3] > 0.0 {
+                image[p]
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    let (added, originals) = (r.scene.emitters.clone(), r.scene.originals.clone());
+    let drawn = emitters::Drawn {
+        added: &added,
+        intensities: &lighting.intensities,
+        originals: &originals,
+        alpha_dim: lighting.alpha_dim,
+    };
+    let image = emitters::reference_emitters(
+        &t.novel,
+        &g.pos_depth,
+        (&comp, &irr[npix..2 * npix]),
+        &drawn,
+        &image,
+    );
+    for p in 0..npix {
+        for k in 0..3 {
+            let w = image[p][k];
+            assert!(
+                (hdr[p][k] - w).abs() <= 1e-5 * w.abs().max(1.0),
+                "pixel {p}: {} vs {w}",
+                hdr[p][k]
+            );
+        }
+    }
+
+    // Under the original lighting the layer gives the photos' blend back: ratio's image.
+    let original = Lighting {
+        intensities: vec![0.0],
+        alpha_dim: 0.0,
+    };
+    r.render(&t.novel, &original, Mode::Glossy, 1.0, None)
+        .unwrap();
+    let glossy_hdr = r.hdr().unwrap();
+    r.render(&t.novel, &original, Mode::Ratio, 1.0, None)
+        .unwrap();
+    let ratio_hdr = r.hdr().unwrap();
+    for p in 0..npix {
+        for k in 0..3 {
+            let (a, b) = (glossy_hdr[p][k], ratio_hdr[p][k]);
+            assert!(
+                (a - b).abs() <= 1e-5 * b.abs().max(1.0),
+                "original lighting, pixel {p}: {a} vs {b}"
+            );
+        }
+    }
+    common::assert_no_validation_errors(&gpu);
+}
+
+/// The novel-view pixel where a horizontal plane at height `h` (the floor, a table top)
+/// mirrors `lamp` towards the eye.
+fn mirror_pixel(cam: &Camera, lamp: Vec3, h: f32) -> Vec2 {
+    let e = cam.center();
+    let l = Vec3::new(lamp.x, 2.0 * h - lamp.y, lamp.z);
+    let m = e + (l - e) * ((e.y - h) / (e.y - l.y));
+    let q = cam.to_camera(m);
+    Vec2::new(cam.fx * q.x / q.z + cam.cx, cam.fy * q.y / q.z + cam.cy)
+}
+
+/// Where the lamp's highlight peaks near `want`: among the fitted pixels of horizontal surfaces
+/// (the floor, the table: the photos' glossy ones) within 6 px, the one whose view-dependent
+/// part per unit of strength (luminance of S / Σ w_c) is largest. Also that value.
+fn highlight_near(r: &Renderer, npix: usize, width: u32, want: Vec2) -> (Vec2, f32) {
+    let b = r.buffers_ref().unwrap();
+    let gl = planes(&b.glossy, 2 * npix);
+    let g = b.gbuf.download().unwrap();
+    let s = |p: usize| gl[npix + p];
+    let lum = |p: usize| (0.2126 * s(p)[0] + 0.7152 * s(p)[1] + 0.0722 * s(p)[2]) / gl[p][3];
+    let at = |p: usize| {
+        Vec2::new(
+            (p as u32 % width) as f32 + 0.5,
+            (p as u32 / width) as f32 + 0.5,
+        )
+    };
+    let near = (0..npix)
+        .filter(|&p| g.pos_depth[p][3] > 0.0 && g.normal[p][1].abs() > 0.99 && gl[p][3] > 0.0);
+    let p = near
+        .filter(|&p| at(p).distance(want) <= 6.0)
+        .max_by(|&a, &b| lum(a).total_cmp(&lum(b)))
+        .expect("fitted pixels near the mirror point");
+    (at(p), lum(p))
+}
+
+/// The mirror pixel of `lamp` on the horizontal surface the camera sees there (the floor, or
+/// the table top in front of it).
+fn mirror_on_surface(r: &Renderer, cam: &Camera, lamp: Vec3) -> Vec2 {
+    let pos = r.buffers_ref().unwrap().gbuf.download().unwrap().pos_depth;
+    let mut want = mirror_pixel(cam, lamp, 0.0);
+    for _ in 0..2 {
+        let p =
+            (want.y as u32).min(cam.height - 1) * cam.width + (want.x as u32).min(cam.width - 1);
+        want = mirror_pixel(cam, lamp, pos[p as usize][1]);
+    }
+    want
+}
+
+#[test]
+fn a_lamps_highlight_sits_where_the_mirror_direction_puts_it_and_moves_with_it() {
+    let gpu = common::gpu();
+    let t = room();
+    let mut r = renderer(&gpu, &t);
+    // The lamp alone: the ceiling panel off, so the floor's view-dependent part is the lamp's.
+    let alone = Lighting {
+        intensities: vec![1.0],
+        alpha_dim: 1.0,
+    };
+    let npix = (t.novel.width * t.novel.height) as usize;
+    let mut seen = Vec::new();
+    for (i, c) in [Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.45, 2.0, -0.2)]
+        .into_iter()
+        .enumerate()
+    {
+        if i > 0 {
+            // Moved as the viewer moves it: live, no bake.
+            r.set_live_light(0, &lamp_at(c)).unwrap();
+        }
+        r.render(&t.novel, &alone, Mode::Glossy, 1.0, None).unwrap();
+        let want = mirror_on_surface(&r, &t.novel, c);
+        let (got, value) = highlight_near(&r, npix, t.novel.width, want);
+        assert!(value > 0.03, "lamp at {c}: a highlight shows ({value})");
+        assert!(
+            got.distance(want) <= 2.0,
+            "lamp at {c}: highlight at {got}, the mirror direction puts it at {want}"
+        );
+        seen.push((got, want));
+    }
+    let (moved, predicted) = (seen[1].0 - seen[0].0, seen[1].1 - seen[0].1);
+    assert!(
+        predicted.length() > 4.0,
+        "the test moves the mirror point: {predicted}"
+    );
+    assert!(
+        moved.distance(predicted) <= 2.0,
+        "the highlight moves with the lamp: {moved} (mirror point: {predicted})"
+    );
+    common::assert_no_validation_errors(&gpu);
+}
