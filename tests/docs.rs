@@ -241,9 +241,7 @@ fn broken(page: &Path, target: &str) -> Option<String> {
     if !file.exists() {
         return Some(format!("{} does not exist", file.display()));
     }
-    let Some(anchor) = anchor else {
-        return None;
-    };
+    let anchor = anchor?;
     if file.extension().is_none_or(|e| e != "md") {
         return None; // anchors into source files (line numbers) are not checked
     }

@@ -546,6 +546,45 @@ fn network_mode_output_matches_network_on_the_frame_input() {
     common::assert_no_validation_errors(&gpu);
 }
 
+/// The viewer's moving frame fills holes (`Renderer::fill_holes`): in ratio, glossy and ULR
+/// modes each hole takes the mean of the nearest covered pixels along 8 directions, as
+/// `output::fill_holes` computes from the mode's own image without the fill (within 1e-5);
+/// covered pixels keep their value.
+#[test]
+fn holes_are_filled_from_their_covered_neighbours_when_asked() {
+    let gpu = common::gpu();
+    let t = tiny();
+    let scene =
+        FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, &[], MapFormat::Rgba32f).unwrap();
+    let mut r = Renderer::new(&gpu, scene, None, Storage::F32).unwrap();
+    let lighting = Lighting {
+        intensities: vec![],
+        alpha_dim: 0.3,
+    };
+    let npix = (t.novel.width * t.novel.height) as usize;
+    for mode in [Mode::Ratio, Mode::Glossy, Mode::Ulr] {
+        r.fill_holes = false;
+        r.render(&t.novel, &lighting, mode, 1.0, None).unwrap();
+        let plain = rgb(&r);
+        let b = r.buffers_ref().unwrap();
+        let surface = surface_mask(b);
+        let comp = b.composites().unwrap();
+        let covered: Vec<bool> = (0..npix).map(|p| comp[p][..3] != [0.0; 3]).collect();
+        let holes = (0..npix).filter(|&p| surface[p] && !covered[p]).count();
+        assert!(holes > 0, "the tiny view has holes");
+        r.fill_holes = true;
+        r.render(&t.novel, &lighting, mode, 1.0, None).unwrap();
+        let want = output::fill_holes(&plain, &covered, &surface, t.novel.width as usize);
+        let filled = (0..npix).filter(|&p| want[p] != plain[p]).count();
+        assert!(
+            filled * 2 > holes,
+            "{mode:?}: {filled} of {holes} holes filled"
+        );
+        assert_close(&r.hdr().unwrap(), &want, 1e-5, &format!("{mode:?} filled"));
+    }
+    common::assert_no_validation_errors(&gpu);
+}
+
 /// A network with base "ratio" whose output conv is zero (as `model.py` initializes it, before
 /// any training) renders the ratio image: relative 1e-4 with fp32 storage (the input channels
 /// are tonemapped and untonemapped once), 2e-2 with fp16 (11-bit channels).

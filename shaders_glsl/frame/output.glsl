@@ -46,6 +46,7 @@ layout(push_constant, scalar) uniform Push {
     float agree;     // NetConfig::agree (0: none)
     uint norig;      // declared original lights (emitters.glsl)
     float alpha_dim; // §4.1.4: 0 keeps the original lighting, 1 removes it
+    uint fill;       // 1: holes filled from the nearest covered pixels (`hole_fill`)
 } pc;
 
 const uint MODE_NETWORK = 0u;
@@ -160,6 +161,33 @@ vec3 network_image(uint p, ivec2 xy, uint npix) {
     return untm(max(od + ov, vec3(0.0)));
 }
 
+// The image of a mode that leaves holes black (ratio, glossy, ULR) at pixel q.
+vec3 plain_image(uint q, uint npix) {
+    if (pc.mode == MODE_GLOSSY) return glossy_image(q, npix);
+    if (pc.mode == MODE_ULR) return vec3(comp[q].rgb);
+    return ratio_image(q, npix);
+}
+
+// A hole's fill for the viewer's moving frame (output.rs `fill_holes`): the mean of the image
+// at the first covered pixel along each of 8 directions within FILL_RADIUS pixels, so that
+// no black speckles show while the user walks or drags a lamp; black where none is found.
+const int FILL_RADIUS = 12;
+vec3 hole_fill(ivec2 xy, uint npix) {
+    const ivec2 DIRS[8] = ivec2[8](ivec2(1, 0), ivec2(-1, 0), ivec2(0, 1), ivec2(0, -1),
+                                   ivec2(1, 1), ivec2(-1, 1), ivec2(1, -1), ivec2(-1, -1));
+    vec3 sum = vec3(0.0);
+    float n = 0.0;
+    for (int d = 0; d < 8; d++) {
+        for (int k = 1; k <= FILL_RADIUS; k++) {
+            ivec2 q = xy + k * DIRS[d];
+            if (any(lessThan(q, ivec2(0))) || q.x >= int(pc.width) || q.y >= int(pc.height)) break;
+            uint qi = uint(q.y) * pc.width + uint(q.x);
+            if (any(notEqual(vec3(comp[qi].rgb), vec3(0.0)))) { sum += plain_image(qi, npix); n += 1.0; break; }
+        }
+    }
+    return n > 0.0 ? sum / n : vec3(0.0);
+}
+
 float srgb(float x) {
     x = clamp(x, 0.0, 1.0);
     return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
@@ -176,12 +204,10 @@ void main() {
     if (xp.w > 0.0) {
         if (pc.mode == MODE_NETWORK || (pc.mode == MODE_RATIO_FILLED && hole)) {
             c = network_image(p, xy, npix);
-        } else if (pc.mode == MODE_GLOSSY) {
-            c = glossy_image(p, npix);
-        } else if (pc.mode == MODE_ULR) {
-            c = vec3(comp[p].rgb);
+        } else if (hole && pc.fill == 1u) {
+            c = hole_fill(xy, npix);
         } else {
-            c = ratio_image(p, npix);
+            c = plain_image(p, npix);
         }
     }
     vec3 eye = cam_center(pc.cam);

@@ -422,6 +422,8 @@ impl App {
             }
             _ => (full, self.mode),
         };
+        // Moving frames fill the holes no photo sees instead of showing them black.
+        self.renderer.fill_holes = matches!(next, Next::Moving { .. });
         let mut timer = Timer::new(&self.gpu, 64)?;
         let t0 = Instant::now();
         (self.renderer).render(&cam, &self.lighting, mode, self.exposure, Some(&mut timer))?;

@@ -3,8 +3,8 @@ glossy floor, the original lights at 30 % and the lamp extra1 at its place in sc
 the two places the main job's walk moves it to (paths/walk.json, t = 7.5 and 9.5). Rows: the
 three places; columns: glossy mode, network mode, ratio mode and Mitsuba's truth. Prints, per
 place, the highlight region's linear luminance in each (the region: the 5×5 pixels around the
-brightest pixel of the truth's glossy part of the lamp on the floor) and the image's row and
-column of that pixel.
+brightest pixel of the truth's glossy part of the lamp on the floor, where the truth's normal
+points up) and the image's row and column of that pixel.
 
   python3 tools/train/highlights.py --out DIR [--relit BIN] [--spp 256] [--jpg FIG.jpg]
 
@@ -90,7 +90,8 @@ def truth_frames(out, spp):
     """(total, lamp's glossy part) per place, linear: the original at 1 − DIM plus the lamp."""
     d = truth_scene(out)
     render = os.path.join(H.ROOT, "tools", "groundtruth", "render.py")
-    base = [sys.executable, render, d, "--spp", str(spp), "--views", "fig", "--denoise",
+    # Mitsuba lives in the system Python (tools/setup.sh), not in the trainer's environment.
+    base = ["python3", render, d, "--spp", str(spp), "--views", "fig", "--denoise",
             "--only", "all"]
     gt = os.path.join(d, "gt")
     if not os.path.exists(os.path.join(gt, "original", "fig.total.exr")):
@@ -118,9 +119,10 @@ def _read_exr(path):
         return np.stack([np.asarray(ch[c].pixels, np.float32) for c in "RGB"], -1)
 
 
-def region(glossy):
-    """The 5×5 window around the brightest pixel of the (3×3-box-smoothed) glossy part."""
-    g = lum(np.maximum(glossy, 0))
+def region(glossy, floor):
+    """The 5×5 window around the brightest pixel of the (3×3-box-smoothed) glossy part on the
+    floor (`floor`: the truth's shading normal points up; the lamp itself is no highlight)."""
+    g = lum(np.maximum(glossy, 0)) * floor
     s = sum(np.roll(np.roll(g, dy, 0), dx, 1) for dy in (-1, 0, 1) for dx in (-1, 0, 1))
     s[:2], s[-2:], s[:, :2], s[:, -2:] = 0, 0, 0, 0
     y, x = np.unravel_index(np.argmax(s), s.shape)
@@ -138,10 +140,12 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     engine = {m: engine_frames(a.relit, a.out, m) for m in MODES}
     truth = truth_frames(a.out, a.spp)
+    normal = _read_exr(os.path.join(a.out, "truth_scene", "gt", "aov", "fig.normal.exr"))
+    floor = normal[..., 1] > 0.9
     rows, report = [], {}
     print(f"place | highlight pixel (row, col) | {' | '.join(MODES)} | truth")
     for i, (t, g) in enumerate(truth):
-        win, at = region(g)
+        win, at = region(g, floor)
         vals = {m: float(lum(engine[m][i][win]).mean()) for m in MODES}
         vals["truth"] = float(lum(t[win]).mean())
         report[f"place{i}"] = {"pixel": at, "move": MOVES[i], **vals}

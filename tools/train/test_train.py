@@ -8,6 +8,7 @@ RELIT names the relit binary (default: target/debug/relit, what `cargo test` bui
 import json
 import math
 import os
+import random
 import signal
 import subprocess
 import sys
@@ -183,6 +184,37 @@ class TrainerTest(unittest.TestCase):
         err = T.draw_lights(raw, lights) - torch.cat([dd, tt - dd], 1)
         self.assertEqual(err[:, :, :3].abs().max().item(), 0.0)
         self.assertTrue(torch.equal(dd[:, :, 3:], d[:, :, 3:]) and torch.equal(tt[:, :, 3:], t[:, :, 3:]))
+
+    def test_a_glossy_base_network_trains_on_glossy_modes_image_and_exports_either_base(self):
+        sys.path.insert(0, HERE)
+        import glob
+        import torch
+        import model as M
+        import samples as S
+        import train as T
+        # The dataset's samples carry the view-dependent layer (relit dump --parts).
+        sample = S.Sample(sorted(glob.glob(os.path.join(self.data, "train", "*")))[0])
+        g = sample.glossy(0.5, [1.0] * len(sample.lights))
+        self.assertEqual(g.shape, sample.t["e_src"].shape)
+        x, _, _, _ = T.batch(sample, 0.5, [1.0] * len(sample.lights), None, random.Random(0),
+                             glossy=True)
+        self.assertEqual(x.shape[1], 69)          # the input plus glossy mode's image
+        net = M.RelightNet(width=8, trunk_blocks=1, level_blocks=1, tail_blocks=1, base="glossy")
+        with torch.no_grad():
+            out = net(x)                          # untrained: glossy mode's image
+        self.assertTrue(torch.allclose(out[:, :3], M.tm(x[:, 66:69]), atol=1e-6))
+        self.assertTrue(torch.equal(T.ratio_image(x)[:, :3], M.tm(x[:, 66:69])))
+        with self.assertRaises(ValueError):
+            net(x[:, :66])                        # no base image: refused
+        run = self.run_dir("glossy")
+        r = train(self.data, run, "--steps", "1", "--base", "glossy", "--gate", "1")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(M.load(os.path.join(run, "weights.safetensors")).config["base"], "glossy")
+        out = os.path.join(run, "ratio.safetensors")
+        r = subprocess.run([sys.executable, os.path.join(HERE, "export.py"), run, "--out", out,
+                            "--base", "ratio"], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(M.load(out).config["base"], "ratio")
 
     def test_the_gate_leaves_ratio_where_no_lamp_reaches_and_passes_the_lamps_light(self):
         sys.path.insert(0, HERE)

@@ -150,30 +150,42 @@ impl Sums {
     }
 }
 
-/// The normal mirror directions take at pixel p: the mean of the G-buffer normals (facing n)
-/// over the 7×7 pixels on the same surface (normals within ~25°, depth within 5 %;
-/// `lobe.glsl`'s `smooth_normal`): a proxy's noisy normals would scatter the highlights.
-pub fn smooth_normal(r: &RefInputs, p: usize, n: Vec3) -> Vec3 {
-    const RADIUS: i64 = 3;
+/// The pixels within `radius` of p (a square) on p's surface: a surface there, depth within
+/// 5 % of p's, normals within ~25° (|cos| ≥ 0.9), as the shaders' windows test them.
+fn same_surface<'a>(
+    r: &'a RefInputs<'a>,
+    p: usize,
+    radius: i64,
+) -> impl Iterator<Item = usize> + 'a {
     let (w, h) = (r.width as i64, r.height as i64);
     let (px, py, depth) = (p as i64 % w, p as i64 / w, r.gpos[p][3]);
-    let mut s = Vec3::ZERO;
-    for dy in -RADIUS..=RADIUS {
-        for dx in -RADIUS..=RADIUS {
-            let (qx, qy) = (px + dx, py + dy);
-            if qx < 0 || qy < 0 || qx >= w || qy >= h {
-                continue;
+    let n = Vec3::from_slice(&r.gnrm[p][..3]);
+    (-radius..=radius)
+        .flat_map(move |dy| (-radius..=radius).map(move |dx| (px + dx, py + dy)))
+        .filter(move |&(qx, qy)| qx >= 0 && qy >= 0 && qx < w && qy < h)
+        .map(move |(qx, qy)| (qy * w + qx) as usize)
+        .filter(move |&q| {
+            let d = r.gpos[q][3];
+            let c = Vec3::from_slice(&r.gnrm[q][..3]).dot(n);
+            d > 0.0 && (d - depth).abs() <= 0.05 * depth && c.abs() >= 0.9
+        })
+}
+
+/// The normal mirror directions take at pixel p: the mean of the G-buffer normals (facing n)
+/// over the 7×7 pixels on the same surface (`lobe.glsl`'s `smooth_normal`): a proxy's noisy
+/// normals would scatter the highlights.
+pub fn smooth_normal(r: &RefInputs, p: usize, n: Vec3) -> Vec3 {
+    same_surface(r, p, 3)
+        .map(|q| {
+            let nq = Vec3::from_slice(&r.gnrm[q][..3]);
+            if nq.dot(n) < 0.0 {
+                -nq
+            } else {
+                nq
             }
-            let q = (qy * w + qx) as usize;
-            let (g, nq) = (r.gpos[q], Vec3::from_slice(&r.gnrm[q][..3]));
-            let c = nq.dot(n);
-            if g[3] <= 0.0 || (g[3] - depth).abs() > 0.05 * depth || c.abs() < 0.9 {
-                continue;
-            }
-            s += if c < 0.0 { -nq } else { nq };
-        }
-    }
-    s.normalize()
+        })
+        .sum::<Vec3>()
+        .normalize()
 }
 
 /// The original lights (at most MAX_ORIG) that x sees, as bits.
@@ -229,36 +241,17 @@ pub fn sums_reference(r: &RefInputs, mesh: &Mesh, comp: &[[f32; 4]]) -> Vec<[f32
 }
 
 /// The window's pooled (Σ|X − X̄|² per lobe, Σ(X − X̄)·(I − Ī) per lobe, Σ|I − Ī|², spread) at
-/// pixel p: the neighbours with sums, within 5 % of p's depth, normals within ~25°.
+/// pixel p: its 5×5 neighbours on the same surface that hold sums.
 fn pooled(r: &RefInputs, sums: &[[f32; 4]], p: usize) -> ([f32; 4], [f32; 4], f32, f32) {
-    let (w, h, npix) = (
-        r.width as i64,
-        r.height as i64,
-        (r.width * r.height) as usize,
-    );
-    let (px, py) = (p as i64 % w, p as i64 / w);
-    let (depth, n) = (r.gpos[p][3], Vec3::from_slice(&r.gnrm[p][..3]));
+    let npix = (r.width * r.height) as usize;
     let (mut cxx, mut cxi, mut cii, mut spread) = ([0f32; 4], [0f32; 4], 0.0, 0.0);
-    for dy in -RADIUS..=RADIUS {
-        for dx in -RADIUS..=RADIUS {
-            let (qx, qy) = (px + dx, py + dy);
-            if qx < 0 || qy < 0 || qx >= w || qy >= h {
-                continue;
-            }
-            let q = (qy * w + qx) as usize;
-            let s2 = sums[2 * npix + q];
-            let nq = Vec3::from_slice(&r.gnrm[q][..3]);
-            if s2[1] == 0.0 || (r.gpos[q][3] - depth).abs() > 0.05 * depth || nq.dot(n).abs() < 0.9
-            {
-                continue;
-            }
-            for c in 0..LOBES {
-                cxx[c] += sums[q][c];
-                cxi[c] += sums[npix + q][c];
-            }
-            cii += s2[0];
-            spread += s2[3];
+    for q in same_surface(r, p, RADIUS).filter(|&q| sums[2 * npix + q][1] != 0.0) {
+        for c in 0..LOBES {
+            cxx[c] += sums[q][c];
+            cxi[c] += sums[npix + q][c];
         }
+        cii += sums[2 * npix + q][0];
+        spread += sums[2 * npix + q][3];
     }
     (cxx, cxi, cii, spread)
 }

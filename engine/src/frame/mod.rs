@@ -530,6 +530,10 @@ pub struct Renderer {
     /// do not run it: ratio and ULR frames for the screen cost half as much. Off by default,
     /// since `relit dump` and the tests read those passes' buffers after a ULR frame.
     pub display_only: bool,
+    /// Fill the holes no input view sees (ratio, glossy and ULR modes) from the nearest covered
+    /// pixels (`output.glsl`'s `hole_fill`): the viewer's moving frame, which would show them
+    /// black. Off by default: renders and evaluations score holes as the mode leaves them.
+    pub fill_holes: bool,
 }
 
 /// The push constants of one frame's passes.
@@ -593,6 +597,7 @@ impl Renderer {
             bufs: Vec::new(),
             exclude: None,
             display_only: false,
+            fill_holes: false,
         })
     }
 
@@ -897,6 +902,7 @@ impl Renderer {
                 agree: self.net.as_ref().map_or(0.0, |n| n.config.agree),
                 norig,
                 alpha_dim,
+                fill: self.fill_holes as u32,
             },
         }
     }

@@ -30,6 +30,8 @@ pub struct Push {
     /// Declared original lights (drawn where seen, dimmed).
     pub norig: u32,
     pub alpha_dim: f32,
+    /// 1: holes take the mean of the nearest covered pixels along 8 directions ([`fill_holes`]).
+    pub fill: u32,
 }
 
 /// Push as its shaders' push block declares it (tests/gpu.rs checks).
@@ -53,7 +55,8 @@ pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
         gain,
         agree,
         norig,
-        alpha_dim
+        alpha_dim,
+        fill
     ]
 );
 
@@ -279,6 +282,56 @@ pub fn reference_ratio_filled(
                 network[p]
             } else {
                 ratio[p]
+            }
+        })
+        .collect()
+}
+
+/// Pixels a hole fill searches along each of its 8 directions (`output.glsl`'s `hole_fill`).
+pub const FILL_RADIUS: i64 = 12;
+
+/// CPU reference of the hole fill: each pixel with a surface that no input view covers takes
+/// the mean of `image` at the first covered pixel along each of the 8 directions (rows,
+/// columns, diagonals) within FILL_RADIUS; it keeps its value where none is found.
+pub fn fill_holes(
+    image: &[[f32; 3]],
+    covered: &[bool],
+    surface: &[bool],
+    width: usize,
+) -> Vec<[f32; 3]> {
+    let height = (image.len() / width) as i64;
+    let w = width as i64;
+    (0..image.len())
+        .map(|p| {
+            if !surface[p] || covered[p] {
+                return image[p];
+            }
+            let (x, y) = (p as i64 % w, p as i64 / w);
+            let (mut sum, mut n) = ([0f32; 3], 0.0);
+            for (dx, dy) in [
+                (1, 0),
+                (-1, 0),
+                (0, 1),
+                (0, -1),
+                (1, 1),
+                (-1, 1),
+                (1, -1),
+                (-1, -1),
+            ] {
+                let found = (1..=FILL_RADIUS)
+                    .map(|k| (x + k * dx, y + k * dy))
+                    .take_while(|&(qx, qy)| qx >= 0 && qy >= 0 && qx < w && qy < height)
+                    .map(|(qx, qy)| (qy * w + qx) as usize)
+                    .find(|&q| covered[q]);
+                if let Some(q) = found {
+                    (0..3).for_each(|c| sum[c] += image[q][c]);
+                    n += 1.0;
+                }
+            }
+            if n > 0.0 {
+                sum.map(|v| v / n)
+            } else {
+                image[p]
             }
         })
         .collect()
