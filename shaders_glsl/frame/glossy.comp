@@ -48,8 +48,12 @@ vec3 lamps(vec3 x, vec3 n, vec3 r, vec3 w) {
     vec3 s = vec3(0.0);
     for (uint l = 0u; l < pc.nlights; ++l) {
         if (intensity[l] <= 0.0 || !sees_light(x, n, emitters[l])) continue;
-        for (uint c = 0u; c < LOBES; ++c)
-            if (w[c] > 0.0) s += w[c] * intensity[l] * lobe_light(x, r, lobe_width(c), emitters[l]);
+        float omega, th2;
+        light_seen(x, r, emitters[l], omega, th2);
+        if (omega <= 0.0) continue;
+        float k = 0.0;
+        for (uint c = 0u; c < LOBES; ++c) k += w[c] * lobe_weight(lobe_width(c), omega, th2);
+        s += intensity[l] * emitters[l].radiance.rgb * k;
     }
     return s;
 }

@@ -64,10 +64,10 @@ void main() {
         vec3 ci = cam_center(cams[j]);
         vec3 e = pc.eye.xyz - ci;
         float w1 = 1.0 / max(dot(e, e), 1e-8);
-        vec3 r = reflect(normalize(x - ci), n);
+        vec3 xs[LOBES];
+        lobe_originals(x, reflect(normalize(x - ci), n), seen, xs);
         for (uint c = 0u; c < LOBES; ++c) {
-            vec3 xc = lobe_originals(x, r, c, seen);
-            sx[c] += xc; swx[c] += w1 * xc; sxx[c] += dot(xc, xc); sxi[c] += dot(xc, col);
+            sx[c] += xs[c]; swx[c] += w1 * xs[c]; sxx[c] += dot(xs[c], xs[c]); sxi[c] += dot(xs[c], col);
         }
         si += col; sii += dot(col, col); cnt += 1.0; sw += w1;
     }

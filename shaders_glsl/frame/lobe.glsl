@@ -42,10 +42,9 @@ bool sees_light(vec3 x, vec3 n, Light l) {
     return rayQueryGetIntersectionTypeEXT(rq, true) == gl_RayQueryCommittedIntersectionNoneEXT;
 }
 
-// Light l's radiance seen from x through a normalized Gaussian lobe of width σ around unit r:
-// L·Ω·exp(−θ²/2v)/(2πv), v = σ² + Ω/4π (the light as a Gaussian of its own solid angle Ω).
-vec3 lobe_light(vec3 x, vec3 r, float sigma, Light l) {
-    const float PI = 3.14159265358979;
+// Light l as seen from x against unit r: its solid angle Ω (0 from behind) and the squared
+// angle θ² between r and the direction to its centre.
+void light_seen(vec3 x, vec3 r, Light l, out float omega, out float th2) {
     vec3 c, nl;
     float area;
     light_frame(l, c, nl, area);
@@ -53,11 +52,24 @@ vec3 lobe_light(vec3 x, vec3 r, float sigma, Light l) {
     float d2 = max(dot(d, d), 1e-6);
     vec3 w = d * inversesqrt(d2);
     float cosl = -dot(nl, w);
-    if (cosl <= 0.0) return vec3(0.0);
-    float omega = min(area * cosl / d2, 2.0 * PI);
-    float v = sigma * sigma + omega / (4.0 * PI);
+    omega = cosl > 0.0 ? min(area * cosl / d2, 2.0 * 3.14159265358979) : 0.0;
     float th = acos(clamp(dot(w, r), -1.0, 1.0));
-    return l.radiance.rgb * (omega * exp(-th * th / (2.0 * v)) / (2.0 * PI * v));
+    th2 = th * th;
+}
+
+// The normalized Gaussian lobe of width σ applied to a light of solid angle Ω at angle θ:
+// Ω·exp(−θ²/2v)/(2πv), v = σ² + Ω/4π (the light as a Gaussian of its own solid angle).
+float lobe_weight(float sigma, float omega, float th2) {
+    const float PI = 3.14159265358979;
+    float v = sigma * sigma + omega / (4.0 * PI);
+    return omega * exp(-th2 / (2.0 * v)) / (2.0 * PI * v);
+}
+
+// Light l's radiance seen from x through the lobe of width σ around unit r.
+vec3 lobe_light(vec3 x, vec3 r, float sigma, Light l) {
+    float omega, th2;
+    light_seen(x, r, l, omega, th2);
+    return omega > 0.0 ? l.radiance.rgb * lobe_weight(sigma, omega, th2) : vec3(0.0);
 }
 
 // The surface normal a mirror direction takes at pixel xy: the mean of the G-buffer normals
@@ -81,12 +93,18 @@ vec3 smooth_normal(ivec2 xy, vec3 n, float depth) {
     return normalize(s);
 }
 
-// The original lights x sees (bit l of `seen`), through lobe c around r, as photographed.
-vec3 lobe_originals(vec3 x, vec3 r, uint c, uint seen) {
-    vec3 s = vec3(0.0);
-    for (uint l = 0u; l < min(pc.norig, MAX_ORIG); ++l)
-        if ((seen & (1u << l)) != 0u) s += lobe_light(x, r, lobe_width(c), originals[l].light);
-    return s;
+// The original lights x sees (bit l of `seen`), through each lobe around r, as photographed:
+// each light's geometry once, then one exponential per lobe.
+void lobe_originals(vec3 x, vec3 r, uint seen, out vec3 xs[LOBES]) {
+    for (uint c = 0u; c < LOBES; ++c) xs[c] = vec3(0.0);
+    for (uint l = 0u; l < min(pc.norig, MAX_ORIG); ++l) {
+        if ((seen & (1u << l)) == 0u) continue;
+        Light o = originals[l].light;
+        float omega, th2;
+        light_seen(x, r, o, omega, th2);
+        if (omega <= 0.0) continue;
+        for (uint c = 0u; c < LOBES; ++c) xs[c] += o.radiance.rgb * lobe_weight(lobe_width(c), omega, th2);
+    }
 }
 
 #endif

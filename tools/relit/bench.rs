@@ -688,15 +688,16 @@ fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
 }
 
 #[allow(clippy::too_many_arguments)]
-/// The viewer's moving frames along `cams`: ratio mode at the resolution `view::fluid` settles
-/// on (it halves the resolution while a frame misses 8 fps). Returns the median fps over the
-/// frames at the final resolution, and that resolution.
+/// The viewer's moving frames along `cams` for the chosen `mode` (`Renderer::moving_mode`) at
+/// the resolution `view::fluid` settles on (it halves the resolution while a frame misses
+/// 8 fps). Returns the median fps over the frames at the final resolution, and that resolution.
 fn moving_frames(
     r: &mut relit_engine::frame::Renderer,
     cams: &[relit_engine::scene::Camera],
     light: &relit_engine::frame::Lighting,
-    frames: u32,
+    (mode, frames): (relit_engine::frame::Mode, u32),
 ) -> Result<(f64, (u32, u32))> {
+    let moving = r.moving_mode(mode);
     use relit_engine::view::fluid::{moving_res, Fluid, Next, Policy};
     let mut fluid = Fluid::new(Policy::Moving);
     let res = (cams[0].width, cams[0].height);
@@ -711,7 +712,7 @@ fn moving_frames(
         let (mw, mh) = moving_res(res, divisor);
         let cam = crate::render::rescale(&cams[(i + 1) % cams.len()], mw, mh);
         let t = Instant::now();
-        r.render(&cam, light, relit_engine::frame::Mode::Ratio, 1.0, None)?;
+        r.render(&cam, light, moving, 1.0, None)?;
         let secs = t.elapsed().as_secs_f64();
         fluid.rendered(next, secs);
         times.push((divisor, secs * 1e3));
@@ -852,8 +853,9 @@ fn frame_bench(
         "wall (submit to readable): {wm:.1} ms median, {wp:.1} ms p95 -> {:.2} fps median",
         1e3 / wm
     );
-    let (moving_fps, (mw, mh)) = moving_frames(&mut r, &cams, &light, frames)?;
-    println!("moving: {moving_fps:.1} fps (the viewer's cheap frame: ratio mode at {mw}x{mh}, the resolution it settles on here)");
+    let (moving_fps, (mw, mh)) = moving_frames(&mut r, &cams, &light, (mode, frames))?;
+    let moving = r.moving_mode(mode);
+    println!("moving: {moving_fps:.1} fps (the viewer's cheap frame: {moving:?} mode at {mw}x{mh}, the resolution it settles on here)");
     println!(
         "still: {:.2} fps (the full frame: {mode:?} mode at {w}x{h}, wall median)",
         1e3 / wm

@@ -1,7 +1,7 @@
 //! `relit view`: the interactive viewer. Input, the HUD's contents and path recording live
 //! here; the frame is the engine's `Renderer`, the window's picture `view::compose`, the
-//! swapchain `gpu::present`. While anything moves the viewer shows the cheap frame (glossy mode,
-//! or ULR / ratio when chosen, at a resolution that keeps up), and the full frame once the view has been still for a moment
+//! swapchain `gpu::present`. While anything moves the viewer shows the cheap frame (`Renderer::moving_mode`:
+//! ratio, or glossy for glossy images, at a resolution that keeps up), and the full frame once the view has been still for a moment
 //! (`view::fluid`). Every key is listed in `relit_engine::view::hud::KEYS` (F1 shows them).
 //! Lights (`view_lights.rs`): N adds a lamp where the window's centre looks; I/K/J/L/U/O move
 //! the selected one, , and . resize it, C recolours it, F5 saves the lights to scene.json.
@@ -412,12 +412,7 @@ impl App {
         let (cam, mode) = match next {
             Next::Moving { divisor } => {
                 let (w, h) = moving_res(self.res, divisor);
-                // The cheap modes as chosen; otherwise the view-dependent layer without the
-                // network, so that highlights follow the walk and a dragged lamp.
-                let mode = match self.mode {
-                    Mode::Ulr | Mode::Ratio => self.mode,
-                    _ => Mode::Glossy,
-                };
+                let mode = self.renderer.moving_mode(self.mode);
                 (crate::render::rescale(&full, w, h), mode)
             }
             _ => (full, self.mode),
@@ -444,11 +439,7 @@ impl App {
         let frame = match next {
             Next::Moving { divisor } => {
                 let (w, h) = moving_res(self.res, *divisor);
-                let m = match self.mode {
-                    Mode::Ulr => "ULR",
-                    Mode::Ratio => "ratio",
-                    _ => "glossy",
-                };
+                let m = format!("{:?}", self.renderer.moving_mode(self.mode)).to_lowercase();
                 format!("moving {w}x{h} {m}")
             }
             _ => format!("still {}x{}", self.res.0, self.res.1),

@@ -758,12 +758,11 @@ impl Renderer {
                 bytes_of(&push.irradiance),
                 threads,
             )?;
-            let glossy = self.runs_glossy(mode);
-            if inputs || glossy {
+            if inputs {
                 let mirror = bytes_of(&push.target_mirror);
                 g.dispatch("target mirror", &self.target_mirror, mirror, threads)?;
             }
-            if glossy {
+            if self.runs_glossy(mode) {
                 let gl = bytes_of(&push.glossy);
                 g.dispatch("glossy sums", &self.glossy_sums, gl, threads)?;
                 g.dispatch("glossy layer", &self.glossy, gl, threads)?;
@@ -792,6 +791,18 @@ impl Renderer {
     pub fn runs_glossy(&self, mode: Mode) -> bool {
         let base = self.net.as_ref().map(|n| n.config.base);
         mode.needs_glossy() || (mode.needs_network() && base == Some(crate::net::NetBase::Glossy))
+    }
+
+    /// The viewer's cheap frame while anything moves, for the chosen `mode`: ULR and ratio as
+    /// they are; glossy mode for glossy mode and for a network whose base is glossy mode's
+    /// image (its highlights then move with the walk and a dragged lamp); ratio otherwise, as
+    /// the image the network corrects.
+    pub fn moving_mode(&self, mode: Mode) -> Mode {
+        match mode {
+            Mode::Ulr | Mode::Ratio | Mode::Glossy => mode,
+            _ if self.runs_glossy(mode) => Mode::Glossy,
+            _ => Mode::Ratio,
+        }
     }
 
     /// What a frame needs before anything is recorded: weights for a network mode, one
