@@ -95,6 +95,17 @@ class View:
         uv = (c[:, :2] / np.where(np.abs(z) < 1e-12, 1e-12, z)[:, None]) @ self.K[:2, :2].T + self.K[:2, 2]
         return uv - 0.5, z
 
+    def sample(self, X, depth):
+        """World points X projected into this photo: the nearest pixel (ui, vi), the points'
+        depth z here, and this photo's `depth` map at that pixel (0 outside the photo)."""
+        uv, z = self.project(X)
+        h, w = depth.shape
+        ui, vi = np.round(uv[:, 0]).astype(int), np.round(uv[:, 1]).astype(int)
+        inside = (z > 0) & (ui >= 0) & (ui < w) & (vi >= 0) & (vi < h)
+        d = np.zeros(len(X), np.float32)
+        d[inside] = depth[vi[inside], ui[inside]]
+        return ui, vi, z, d
+
     def rays(self):
         """World directions through every pixel centre (H×W×3, not normalized: z = 1 in camera)."""
         h, w = self.grey.shape
@@ -231,13 +242,8 @@ def consistent(views, depths, nbrs):
         X = v.points(d)[ok]
         agree = np.zeros(len(X), np.int32)
         for j in nbrs[i]:
-            nb, dn = views[j], depths[j]
-            uv, z = nb.project(X)
-            hn, wn = dn.shape
-            ui, vi = np.round(uv[:, 0]).astype(int), np.round(uv[:, 1]).astype(int)
-            inside = (z > 0) & (ui >= 0) & (ui < wn) & (vi >= 0) & (vi < hn)
-            dd = np.zeros(len(X), np.float32)
-            dd[inside] = dn[vi[inside], ui[inside]]
+            nb = views[j]
+            ui, vi, _, dd = nb.sample(X, depths[j])
             has = dd > 0
             # the neighbour's point at that pixel, back into this photo
             Xn = nb.centre + nb.rays()[vi[has], ui[has]] * dd[has, None]
@@ -546,13 +552,7 @@ def free_space(views, i, nbrs, fd, kept):
     X = v.points(fd)[ok]
     bad = np.zeros(len(X), bool)
     for j in nbrs[i]:
-        nb, dn = views[j], kept[j]
-        uv, z = nb.project(X)
-        h, w = dn.shape
-        ui, vi = np.round(uv[:, 0]).astype(int), np.round(uv[:, 1]).astype(int)
-        inside = (z > 0) & (ui >= 0) & (ui < w) & (vi >= 0) & (vi < h)
-        seen = np.zeros(len(X), np.float32)
-        seen[inside] = dn[vi[inside], ui[inside]]
+        _, _, z, seen = views[j].sample(X, kept[j])
         bad |= (seen > 0) & (z < seen * (1 - FREE_MARGIN))
     out = fd.copy()
     out[ok] = np.where(bad, 0, fd[ok])
