@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use relit_engine::bake::BakeParams;
 use relit_engine::frame::{self, FrameScene, Lighting, MapFormat, Mode, Renderer};
 use relit_engine::gpu::{Gpu, GpuOptions};
-use relit_engine::net::{Network, Storage};
+use relit_engine::net::{Network, Storage, INPUT_CHANNELS};
 use relit_engine::scene::{self, image, path::CameraPath, Camera, CameraDoc, Scene};
 
 /// Options shared by every command that renders frames.
@@ -653,7 +653,11 @@ pub fn dump(opts: &GpuOptions, dir: &Path, req: &DumpRequest, a: &FrameArgs) -> 
         r.render(&cam, &light, Mode::Glossy, 1.0, None)?;
         let glossy = planar_rgb(&glossy_image(&r)?);
         let mut t = vec![
-            ("input".to_string(), input, vec![66, h, w]),
+            (
+                "input".to_string(),
+                input,
+                vec![INPUT_CHANNELS as usize, h, w],
+            ),
             ("ratio_image".to_string(), ratio, vec![3, h, w]),
             ("glossy_image".to_string(), glossy, vec![3, h, w]),
         ];
@@ -719,7 +723,7 @@ fn parts_tensors(
     let (glow, albedo) = glow_planes(r, cam)?;
     let [d, s, lobe, s_orig] = glossy_planes(r)?;
     let mut t: Vec<Tensor> = vec![
-        ("static".into(), input, vec![66, h, w]),
+        ("static".into(), input, vec![INPUT_CHANNELS as usize, h, w]),
         ("e_src".into(), irr[0].clone(), vec![3, h, w]),
         ("m_orig".into(), mirror, vec![3, h, w]),
         ("light_glow".into(), glow, vec![3, h, w]),

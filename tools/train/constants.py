@@ -24,3 +24,8 @@ _C = read()
 MU = _C["MU"]
 E_FLOOR = _C["E_FLOOR"]
 GAIN_EPS = _C["GAIN_EPS"]
+# The network input's channels: each group's first channel (frame/features.glsl's order).
+IN_CHANNELS = _C["IN_CHANNELS"]
+CH_I, CH_M_SRC, CH_M_TGT = _C["CH_I"], _C["CH_M_SRC"], _C["CH_M_TGT"]
+CH_E_SRC, CH_E_ADD, CH_E_REM = _C["CH_E_SRC"], _C["CH_E_ADD"], _C["CH_E_REM"]
+CH_MIRROR_DIST = _C["CH_MIRROR_DIST"]

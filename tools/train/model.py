@@ -60,17 +60,17 @@ import math
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
+from constants import CH_E_ADD, CH_E_REM, CH_E_SRC, CH_I, E_FLOOR as _E_FLOOR, GAIN_EPS, IN_CHANNELS, MU
 
-DEFAULT_CONFIG = dict(in_channels=66, width=66, trunk_blocks=4, levels=5, level_blocks=4,
+DEFAULT_CONFIG = dict(in_channels=IN_CHANNELS, width=66, trunk_blocks=4, levels=5, level_blocks=4,
                       tail_blocks=2, out_channels=6, base="none", shrink=0.0,
                       gate=0.0, gain=False, agree=0.0)
 BASES = ("none", "ratio", "glossy")
 # Bases whose diffuse output is a correction of an image (the keys below apply to them).
 CORRECTING = ("ratio", "glossy")
-from constants import E_FLOOR as _E_FLOOR, GAIN_EPS, MU
 
-# Input channels (engine/src/frame/features.rs): I_1, E_src/π, E_add/π, E_rem/π, tonemapped.
-I1, E_SRC, E_ADD, E_REM = slice(0, 3), slice(51, 54), slice(54, 57), slice(57, 60)
+# Input channels (the CH_* rows of engine/constants.table): I_1, E_src/π, E_add/π, E_rem/π.
+I1, E_SRC, E_ADD, E_REM = (slice(c, c + 3) for c in (CH_I, CH_E_SRC, CH_E_ADD, CH_E_REM))
 # Ratio mode's floor on E_src (output.glsl: E_FLOOR on E, here on E/π).
 ES_FLOOR = _E_FLOOR / math.pi
 

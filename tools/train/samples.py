@@ -18,7 +18,7 @@ import sys
 
 import numpy as np
 
-from constants import E_FLOOR, MU
+from constants import CH_E_ADD, CH_E_REM, CH_E_SRC, CH_M_TGT, CH_MIRROR_DIST, E_FLOOR, MU
 DTYPES = {"F32": np.float32, "F16": np.float16, "I64": np.int64, "I32": np.int32}
 
 
@@ -60,36 +60,36 @@ class Sample:
         return "target_diffuse.original" in self.t
 
     def mirror(self, alpha, intensities):
-        """M_tgt (linear, 3×H×W) and channel 65 under a lighting."""
+        """M_tgt (linear, 3×H×W) and the mirror-distance channel under a lighting."""
         t = self.t
         m = (1.0 - alpha) * t["m_orig"]
         for name, i in zip(self.lights, intensities):
             m = m + i * t[f"m_add.{name}"]
-        dist = t["static"][65].copy()
+        dist = t["static"][CH_MIRROR_DIST].copy()
         # A mirror ray that meets a lit lamp sees the lamp, the nearest one, and nothing else.
         best = np.full(dist.shape, np.inf, dtype=np.float32)
         for name, i in zip(self.lights, intensities):
             if i <= 0.0:
                 continue
             d = t[f"dist.{name}"][0]
-            hit = (d != t["static"][65]) & (d < best)
+            hit = (d != t["static"][CH_MIRROR_DIST]) & (d < best)
             best = np.where(hit, d, best)
             m = np.where(hit[None], i * t[f"m_add.{name}"], m)
             dist = np.where(hit, d, dist)
         return m, dist
 
     def input(self, alpha, intensities):
-        """The 66-channel network input (tonemapped) under a lighting."""
+        """The network input (IN_CHANNELS, tonemapped) under a lighting."""
         t = self.t
         x = t["static"].copy()
         m, dist = self.mirror(alpha, intensities)
         e_add = sum(i * t[f"e_add.{n}"] for n, i in zip(self.lights, intensities))
         e_add = e_add + np.zeros_like(t["e_src"])
-        x[48:51] = tonemap(m)
-        x[51:54] = tonemap(t["e_src"] / np.pi)
-        x[54:57] = tonemap(e_add / np.pi)
-        x[57:60] = tonemap(alpha * t["e_src"] / np.pi)
-        x[65] = dist
+        x[CH_M_TGT : CH_M_TGT + 3] = tonemap(m)
+        x[CH_E_SRC : CH_E_SRC + 3] = tonemap(t["e_src"] / np.pi)
+        x[CH_E_ADD : CH_E_ADD + 3] = tonemap(e_add / np.pi)
+        x[CH_E_REM : CH_E_REM + 3] = tonemap(alpha * t["e_src"] / np.pi)
+        x[CH_MIRROR_DIST] = dist
         # Pixels without a surface stay zero in every channel.
         surface = np.any(t["static"] != 0.0, axis=0)
         return np.where(surface[None], x, 0.0).astype(np.float32)

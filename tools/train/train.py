@@ -119,8 +119,9 @@ def drawn_targets(d, t, lights):
 def ratio_image(x, lights=None):
     """The image the network corrects as the trainer sees it, tonemapped, with the declared
     original lights drawn: eq. 5's ratio image (ratio mode), or glossy mode's image where the
-    batch carries it (three channels past the 66: base "glossy")."""
-    base = M.tm(x[:, 66:69]) if x.shape[1] == 69 else M.ratio_base(x)
+    batch carries it (three channels past the input's: base "glossy")."""
+    n = M.IN_CHANNELS
+    base = M.tm(x[:, n : n + 3]) if x.shape[1] == n + 3 else M.ratio_base(x)
     return draw_lights(base, lights)
 
 

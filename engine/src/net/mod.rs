@@ -25,8 +25,8 @@ use crate::error::{Error, Result};
 use crate::gpu::{vk, Caps, Gpu};
 
 /// Channels of the network input (§5: 8 + 8 composites, target mirror, 3 irradiance composites
-/// and 6 extra features; the order is in `frame::features`).
-pub const INPUT_CHANNELS: u32 = 66;
+/// and 6 extra features; the order is the CH_* rows of `engine/constants.table`).
+pub const INPUT_CHANNELS: u32 = crate::constants::IN_CHANNELS;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Backend {
