@@ -353,13 +353,11 @@ def knn(points, k, chunk=2048):
 
 
 def normals(points, towards, k=16):
-    """Normals by principal axes of each point's neighbourhood, turned to face its cameras."""
-    idx, _ = knn(points, k)
-    nb = points[idx] - points[idx].mean(1, keepdims=True)
-    cov = np.einsum("nki,nkj->nij", nb, nb)
-    _, vecs = np.linalg.eigh(cov)
-    n = vecs[:, :, 0]
-    return n * np.sign((n * towards).sum(1, keepdims=True) + 1e-12)
+    """Normals by principal axes of each point's neighbourhood, turned to face its cameras (the
+    dense step's, over a k-d tree)."""
+    import dense
+
+    return dense.normals(points, towards, k)
 
 
 def poisson_depth(points, reach):
