@@ -708,6 +708,29 @@ fn added_irradiance_matches_cpu_reference() {
         }
     }
     assert!(reached, "direct light must reach the views");
+    // An original ceiling panel facing down, 1 cm behind the proxy's ceiling (a noisy capture's
+    // proxy): as the bake traces an original light (its share for per-light control), its
+    // shadow rays stop LIGHT_SKIN in front of it and it lights the room; as an added light
+    // there, the ceiling shadows it.
+    use glam::Vec3;
+    let behind = relit_engine::scene::Light {
+        name: "panel".into(),
+        shape: relit_engine::scene::LightShape::Quad {
+            corner: Vec3::new(-0.4, 2.61, -0.3),
+            edge_u: Vec3::new(0.8, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 0.0, 0.6),
+        },
+        radiance: [8.0, 7.6, 7.0],
+        original: true,
+        estimated: false,
+    };
+    let zero = vec![[0.0; 4]; cache.len()];
+    let direct = |l: &GpuLight| {
+        let e = added_irradiance::reference(&t.mesh, &t.data, &layout, &zero, 0, l, p);
+        e.iter().map(|v| v[0]).sum::<f32>()
+    };
+    assert!(behind.original && direct(&GpuLight::traced(&behind)) > 0.0);
+    assert_eq!(direct(&GpuLight::new(&behind)), 0.0);
     common::assert_no_validation_errors(&gpu);
 }
 
@@ -757,6 +780,14 @@ fn relit(args: &[&str]) -> std::process::Output {
         .args(args)
         .output()
         .unwrap()
+}
+
+/// The original lights with entries of their own in a bake of the scene in `dir` (per-light
+/// control: all of them when there are two or more, else none).
+fn original_entries(dir: &std::path::Path) -> usize {
+    let scene = relit_engine::scene::Scene::load(dir).unwrap();
+    let n = scene.lights.iter().filter(|l| l.original).count();
+    n * relit_engine::bake::run::splits_originals(&scene) as usize
 }
 
 /// Every file of a scene's bake cache, its lights' entries (`light-*/`) included, by relative
@@ -826,11 +857,12 @@ fn killed_bake_resumes_to_the_same_cache_and_reruns_are_no_ops() {
         );
     }
     let reference = cache_files(&a);
+    let lights = 2 + original_entries(&a);
     assert_eq!(
         reference.len(),
-        3 + 2 * 4 * (2 + 2) + 2,
-        "params.json, albedo, source cache + per view: E_src, M_src, 2 × E_add, each as EXR \
-         and BC6H, + 2 surface caches"
+        3 + 2 * 4 * (2 + lights) + lights,
+        "params.json, albedo, source cache + per view: E_src, M_src, E_add of the 2 added lights \
+         and the original ones (per-light control), each as EXR and BC6H, + their surface caches"
     );
     // The BC6H copies load as one texture array and decode on the device close to the EXRs.
     {
@@ -953,11 +985,12 @@ fn view_slices_bake_separately_and_join() {
     );
     let out = slice("2..4");
     assert!(out.status.success());
+    let lights = 2 + original_entries(&d);
     assert_eq!(
         cache_files(&d).len(),
-        3 + 2 * (4 + 2 * (1 + 2)) + 2,
+        3 + 2 * (4 + 2 * (1 + lights)) + lights,
         "params.json, albedo, source cache, 4 E_src, then slice 2..4's maps, each as EXR and \
-         BC6H, and the 2 lights' surface caches"
+         BC6H, and the lights' surface caches (the 2 added ones and the original ones)"
     );
     let out = slice("3..9");
     assert!(!out.status.success());
@@ -1274,7 +1307,9 @@ fn bake_covers_the_lights_in_use_and_others_are_baked_when_first_lit() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert_eq!(entries().len(), 1, "{:?}", entries());
+    // The original lights' entries (per-light control) are in every bake.
+    let originals = original_entries(&d);
+    assert_eq!(entries().len(), 1 + originals, "{:?}", entries());
     // A preset that lights extra1: rendering it bakes extra1's entry first, then renders.
     let path = d.join("scene.json");
     let mut doc: serde_json::Value =
@@ -1297,12 +1332,16 @@ fn bake_covers_the_lights_in_use_and_others_are_baked_when_first_lit() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert_eq!(entries().len(), 1, "the original lighting bakes no light");
+    assert_eq!(
+        entries().len(),
+        1 + originals,
+        "the original lighting bakes no light"
+    );
     let out = render(Some("second"));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("baking light(s) extra1"), "{err}");
-    assert_eq!(entries().len(), 2, "{:?}", entries());
+    assert_eq!(entries().len(), 2 + originals, "{:?}", entries());
 }
 
 /// The frame streams each view to the device (`GpuViews::build_streamed`, no host copy of all

@@ -98,6 +98,12 @@ fn example_scene_json_loads() {
     assert_eq!(scene.lights.len(), 2);
     assert!(scene.lights.iter().any(|l| l.original));
     assert_eq!(scene.presets[0].name, "lamp_on_dimmed");
+    assert_eq!(scene.presets[1].originals["ceiling"], [0.6, 0.45, 0.3]);
+    let warm = relit_engine::frame::Lighting::preset(&scene, "ceiling_warm").unwrap();
+    assert_eq!(
+        (warm.intensities, warm.originals),
+        (vec![1.0], vec![[0.6, 0.45, 0.3]])
+    );
     let syn = scene.synthetic.as_ref().unwrap();
     assert_eq!(syn.test_views[0].name, "test000");
     assert_eq!(syn.ground_truth, "gt");
@@ -199,6 +205,12 @@ fn example_camera_path_loads() {
     assert_eq!(path.duration(), 4.0);
     let l = path.lighting_at(3.0).unwrap();
     assert!((l.dim - 0.75).abs() < 1e-6, "{}", l.dim);
+    // The ceiling's factor: 0.2 at 2 s, back to 1 (as captured) at 4 s.
+    assert!(
+        (l.originals["ceiling"][1] - 0.6).abs() < 1e-6,
+        "{:?}",
+        l.originals
+    );
     let c = path.camera_at(4.0, 64, 48);
     assert!((c.rotation.determinant() - 1.0).abs() < 1e-5);
 }
@@ -227,6 +239,10 @@ fn malformed_hand_written_files_are_refused_by_field() {
         ("dim out of range", "\"dim\": 0.5", "\"dim\": 1.5", "dim"),
         ("negative intensity", "{ \"lamp\": 1.0 }", "{ \"lamp\": -1.0 }", "lamp"),
         ("preset of an unknown light", "{ \"lamp\": 1.0 }", "{ \"lamb\": 1.0 }", "lamb"),
+        ("an original light's intensity", "{ \"lamp\": 1.0 }", "{ \"ceiling\": 1.0 }", "originals"),
+        ("an added light's factor", "{ \"ceiling\": [0.6, 0.45, 0.3] }", "{ \"lamp\": 0.5 }", "lamp"),
+        ("a negative factor", "[0.6, 0.45, 0.3]", "[0.6, -0.45, 0.3]", "ceiling"),
+        ("a factor of four channels", "[0.6, 0.45, 0.3]", "[0.6, 0.45, 0.3, 1]", "factor"),
         ("zero quad edge", "\"edge_u\": [0, 0, 0.6]", "\"edge_u\": [0, 0, 0]", "ceiling"),
         ("camera both ways", "\"look_at\": [0.5, 1.0, -0.5]", "\"look_at\": [0.5, 1.0, -0.5], \"rotation\": [[1,0,0],[0,1,0],[0,0,1]]", "rotation"),
         ("test view look_at at its position", "\"look_at\": [0, 1, -1]", "\"look_at\": [0.2, 1.4, 1.0]", "look_at"),
@@ -410,6 +426,11 @@ fn a_recorded_path_replays_its_keyframes() {
         dim,
         intensities: [("lamp".to_string(), lamp)].into(),
         lights: [("lamp".to_string(), at)].into(),
+        // The ceiling at a factor of its own once the lamp is on.
+        originals: match lamp {
+            0.0 => BTreeMap::new(),
+            _ => [("ceiling".to_string(), [lamp / 4.0, 0.5, 0.5])].into(),
+        },
     };
     let mut rec = PathRecorder::default();
     rec.add(key(
@@ -456,6 +477,12 @@ fn a_recorded_path_replays_its_keyframes() {
         let l = path.lighting_at(*t).unwrap();
         assert!((l.dim - k.dim).abs() < 1e-6);
         assert!((l.intensities["lamp"] - k.intensities["lamp"]).abs() < 1e-6);
+        let want = k.originals.get("ceiling").copied().unwrap_or([1.0; 3]);
+        let got = l.originals.get("ceiling").copied().unwrap_or([1.0; 3]);
+        assert!(
+            (Vec3::from(got) - Vec3::from(want)).abs().max_element() < 1e-6,
+            "t {t}"
+        );
         let moved = home["lamp"] + l.moves.get("lamp").copied().unwrap_or(Vec3::ZERO);
         assert!(
             (moved - k.lights["lamp"]).length() < 1e-6,

@@ -181,6 +181,7 @@ fn ref_inputs<'a>(
         exclude: r.exclude,
         emitters: &r.scene.emitters,
         originals: &r.scene.originals,
+        keep: &lighting.originals,
         live: None,
     }
 }
@@ -194,6 +195,7 @@ fn ulr_renderer(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>, t: &Tiny) -> (Rend
     let lighting = Lighting {
         intensities: vec![0.7, 0.0],
         alpha_dim: 0.4,
+        ..Default::default()
     };
     (
         Renderer::new(gpu, scene, None, Storage::F32).unwrap(),
@@ -312,6 +314,7 @@ fn frame_passes_match_cpu_references() {
         intensities: &lighting.intensities,
         originals: &originals,
         alpha_dim: lighting.alpha_dim,
+        keep: &lighting.originals,
     };
     let draw = |base: &[[f32; 3]]| {
         emitters::reference_emitters(
@@ -490,10 +493,12 @@ fn network_mode_output_matches_network_on_the_frame_input() {
             true => Lighting {
                 intensities: vec![0.0, 0.5],
                 alpha_dim: 0.5,
+                ..Default::default()
             },
             false => Lighting {
                 intensities: vec![],
                 alpha_dim: 0.0,
+                ..Default::default()
             },
         };
         r.render(&t.novel, &lighting, Mode::Network, 2.0, None)
@@ -560,6 +565,7 @@ fn holes_are_filled_from_their_covered_neighbours_when_asked() {
     let lighting = Lighting {
         intensities: vec![],
         alpha_dim: 0.3,
+        ..Default::default()
     };
     let npix = (t.novel.width * t.novel.height) as usize;
     for mode in [Mode::Ratio, Mode::Glossy, Mode::Ulr] {
@@ -608,6 +614,7 @@ fn untrained_ratio_network_renders_the_ratio_image() {
         let lighting = Lighting {
             intensities: vec![],
             alpha_dim: 0.5,
+            ..Default::default()
         };
         r.render(&t.novel, &lighting, Mode::Ratio, 1.0, None)
             .unwrap();
@@ -648,6 +655,7 @@ fn gated_network_renders_the_ratio_image_where_no_lamp_reaches() {
             let lighting = Lighting {
                 intensities: vec![0.0, lamp],
                 alpha_dim,
+                ..Default::default()
             };
             r.render(&t.novel, &lighting, mode, 1.0, None).unwrap();
             (rgb(&r), r.buffers_ref().unwrap().composites().unwrap())
@@ -695,6 +703,7 @@ fn ratio_filled_mode_is_ratio_with_the_networks_holes() {
     let lighting = Lighting {
         intensities: vec![],
         alpha_dim: 0.3,
+        ..Default::default()
     };
     let mut frame = |mode| {
         r.render(&t.novel, &lighting, mode, 1.0, None).unwrap();
@@ -773,6 +782,29 @@ fn lighting_presets_and_errors() {
     assert_eq!(l.alpha_dim, 0.5);
     let e = Lighting::preset(&scene, "nope").unwrap_err().to_string();
     assert!(e.contains("nope") && e.contains("extra0_on_dimmed"), "{e}");
+    // A path's lighting may set the declared original lights' factors, by name, and no other.
+    let file = std::path::Path::new("path.json");
+    let mut pl = relit_engine::scene::path::PathLighting {
+        dim: 0.2,
+        intensities: [("extra0".to_string(), 1.0)].into(),
+        moves: Default::default(),
+        originals: [(scene.original_names()[1].clone(), [0.0, 0.5, 1.0])].into(),
+    };
+    let l = Lighting::from_path(&scene, &pl, file).unwrap();
+    assert_eq!(l.originals.len(), scene.original_names().len());
+    assert_eq!(
+        (l.originals[0], l.originals[1]),
+        ([1.0; 3], [0.0, 0.5, 1.0])
+    );
+    assert!(l.per_light());
+    pl.originals = [("extra0".to_string(), [0.5; 3])].into();
+    let e = Lighting::from_path(&scene, &pl, file)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("path.json") && e.contains("extra0") && e.contains("original"),
+        "{e}"
+    );
 }
 
 /// View culling (frame/view_cull.rs): the pass's visibility bits match the CPU reference, and a
@@ -921,6 +953,7 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
     let only_b = Lighting {
         intensities: vec![0.0, 1.0],
         alpha_dim: 0.0,
+        ..Default::default()
     };
     let (baked, _) = render(&mut r, &only_b);
     let g = r.buffers_ref().unwrap().gbuf.download().unwrap();
@@ -977,6 +1010,7 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
     let lighting = Lighting {
         intensities: vec![0.7, 1.0, 1.5],
         alpha_dim: 0.3,
+        ..Default::default()
     };
     let (irr, mirror) = render(&mut r, &lighting);
     let g = r.buffers_ref().unwrap().gbuf.download().unwrap();
@@ -1015,6 +1049,7 @@ fn live_lights_match_cpu_reference_and_light_where_they_are() {
         &Lighting {
             intensities: vec![0.0, 1.0, 0.0],
             alpha_dim: 0.0,
+            ..Default::default()
         },
     );
     let (a, b) = (live_b[npix + centre][1], baked[npix + centre][1]);
@@ -1071,4 +1106,153 @@ fn an_original_lights_albedo_is_the_albedo_mesh_around_it() {
     let none_around = mesh(vec![positions[0], positions[1], positions[4]]);
     let o = emitters::GpuOriginal::new(&light, Some((&none_around, &albedo[..3])));
     assert_eq!(o.albedo[..3], grey);
+}
+
+/// Per-light control (frame/lighting.rs): the tiny scene with two declared original lights, each
+/// with simulated irradiance layers of its own (different smooth fields, so that their shares
+/// vary over the room). Factors of 1 render exactly what no factor renders; factors of their own
+/// match the CPU references (E_rem, the target mirror, ratio mode with the panels drawn); equal
+/// factors k on both act as α_dim' = α + (1 − α)(1 − k), whatever the shares.
+#[test]
+fn each_original_light_dims_on_its_own_as_its_cpu_reference() {
+    let gpu = common::gpu();
+    let mut t = tiny();
+    let mut second = on_surface(&t.mesh, &t.novel, (30, 20));
+    second.name = "panel2".into();
+    let sims: [&dyn Fn(Vec3) -> [f32; 4]; 2] = [
+        &|p| [1.0 + 0.8 * (2.0 * p.x).sin(), 1.2, 0.9 + 0.3 * p.z, 1.0],
+        &|p| [0.6 + 0.2 * p.y, 1.0 + 0.7 * (1.5 * p.z).cos(), 0.7, 1.0],
+    ];
+    for f in sims {
+        for c in &t.cams {
+            t.host.eadd.push(field_of(&t.mesh, c, f));
+        }
+    }
+    t.host.split = 2;
+    let lights = [t.lights.clone(), vec![t.original.clone(), second]].concat();
+    let scene =
+        FrameScene::from_parts(&gpu, &t.mesh, &t.cams, &t.host, &lights, MapFormat::Rgba32f)
+            .unwrap();
+    assert_eq!((scene.split, scene.split_layer), (2, 2 * 6));
+    let mut r = Renderer::new(&gpu, scene, None, Storage::F32).unwrap();
+    let npix = (t.novel.width * t.novel.height) as usize;
+    let lit = |originals: Vec<[f32; 3]>| Lighting {
+        intensities: vec![0.7, 0.0],
+        alpha_dim: 0.4,
+        originals,
+    };
+    let mut frame = |l: &Lighting, mode: Mode| {
+        r.render(&t.novel, l, mode, 1.0, None).unwrap();
+        let b = r.buffers_ref().unwrap();
+        let mut irr: Vec<[f32; 4]> = b.irr.download_vec().unwrap();
+        irr.truncate(irradiance::PLANES * npix);
+        let mut mirror: Vec<[f32; 4]> = b.mirror.download_vec().unwrap();
+        mirror.truncate(npix);
+        (irr, mirror, r.hdr().unwrap())
+    };
+    // Factors of 1: the very same frame as none.
+    let none = frame(&lit(vec![]), Mode::Ratio);
+    assert_eq!(none, frame(&lit(vec![[1.0; 3]; 2]), Mode::Ratio));
+    // Equal factors: α_dim' = 0.4 + 0.6 · 0.5 = 0.7 (1e-5 relative: the shares sum to 1).
+    let (irr_eq, ..) = frame(&lit(vec![[0.5; 3]; 2]), Mode::Ratio);
+    for p in 0..npix {
+        let (es, rem) = (irr_eq[p], irr_eq[2 * npix + p]);
+        for k in 0..3 {
+            assert!(
+                (rem[k] - 0.7 * es[k]).abs() <= 1e-5 * es[k].max(1.0),
+                "pixel {p}"
+            );
+        }
+    }
+    // Off, and a green-less half: against the CPU references.
+    let l = lit(vec![[0.0; 3], [1.0, 0.5, 1.0]]);
+    let (irr, mirror, hdr) = frame(&l, Mode::Ratio);
+    let b = r.buffers_ref().unwrap();
+    let g = b.gbuf.download().unwrap();
+    let comp = b.composites().unwrap();
+    let active = r.active_views().to_vec();
+    let inputs = ref_inputs(&r, &t, &g, &t.novel, &active, &l);
+    let irr_ref = irradiance::reference(&inputs);
+    let s = 2 * npix..3 * npix;
+    let (bad, worst) = mismatch(&irr[s.clone()], &irr_ref[s.clone()], 0.01);
+    eprintln!(
+        "per-light E_rem: {:.2}% over, worst {worst:.4}",
+        bad * 100.0
+    );
+    assert!(bad <= 0.03, "per-light E_rem: {:.1}% differ", bad * 100.0);
+    // Between the two lights' extremes, and apart from the uniform case somewhere.
+    let mut moved = 0;
+    for p in (0..npix).filter(|&p| irr_ref[p][3] > 0.0) {
+        let (es, rem) = (irr_ref[p][0], irr_ref[2 * npix + p][0]);
+        assert!(
+            rem >= 0.4 * es - 1e-4 && rem <= es + 1e-4,
+            "pixel {p}: {rem} of {es}"
+        );
+        moved += ((rem - irr_eq[2 * npix + p][0]).abs() > 0.02 * es) as usize;
+    }
+    assert!(
+        moved * 2 > npix,
+        "the shares move E_rem on {moved} of {npix} pixels"
+    );
+    let mirror_ref = target_mirror::reference(&inputs, &t.mesh);
+    let (bad, worst) = mismatch(&mirror, &mirror_ref, 0.01);
+    eprintln!(
+        "per-light target mirror: {:.2}% over, worst {worst:.4}",
+        bad * 100.0
+    );
+    assert!(
+        bad <= 0.03,
+        "per-light target mirror: {:.1}% differ",
+        bad * 100.0
+    );
+    // Ratio mode from the passes' own outputs, the panels drawn at their own factors: the
+    // first, off, shows only its reflection of light a.
+    let (added, originals) = (r.scene.emitters.clone(), r.scene.originals.clone());
+    let drawn = emitters::Drawn {
+        added: &added,
+        intensities: &l.intensities,
+        originals: &originals,
+        alpha_dim: l.alpha_dim,
+        keep: &l.originals,
+    };
+    let ratio: Vec<[f32; 3]> = output::reference_ratio(&comp, &irr, npix)
+        .into_iter()
+        .enumerate()
+        .map(|(p, w)| if g.pos_depth[p][3] > 0.0 { w } else { [0.0; 3] })
+        .collect();
+    let ea = &irr[npix..2 * npix];
+    let want = emitters::reference_emitters(&t.novel, &g.pos_depth, (&comp, ea), &drawn, &ratio);
+    for p in 0..npix {
+        for k in 0..3 {
+            let w = want[p][k];
+            assert!(
+                (hdr[p][k] - w).abs() <= 1e-5 * w.abs().max(1.0),
+                "ratio pixel {p}"
+            );
+        }
+    }
+    let p = (8 * t.novel.width + 8) as usize;
+    let glow = emitters::EMITTER_ALBEDO / std::f32::consts::PI * Vec3::from_slice(&ea[p][..3]);
+    assert!(
+        (Vec3::from(want[p]) - glow).abs().max_element() < 1e-4,
+        "the first panel is off"
+    );
+    common::assert_no_validation_errors(&gpu);
+}
+
+/// `f` at the proxy point each pixel of `c` sees (zero where none).
+fn field_of(mesh: &Mesh, c: &Camera, f: &dyn Fn(Vec3) -> [f32; 4]) -> Vec<[f32; 4]> {
+    let mut v = Vec::new();
+    for y in 0..c.height {
+        for x in 0..c.width {
+            let d = c.ray_dir(glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5));
+            v.push(
+                match relit_engine::cpu::closest_hit(mesh, c.center(), d, 0.0, 1e4) {
+                    Some(h) => f(c.center() + d * h.t),
+                    None => f(Vec3::ZERO),
+                },
+            );
+        }
+    }
+    v
 }

@@ -170,6 +170,7 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
     let lighting = Lighting {
         intensities: vec![0.8],
         alpha_dim: 0.5,
+        ..Default::default()
     };
     r.render(&t.novel, &lighting, Mode::Glossy, 1.0, None)
         .unwrap();
@@ -194,6 +195,7 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
         exclude: None,
         emitters: &r.scene.emitters,
         originals: &r.scene.originals,
+        keep: &lighting.originals,
         live: None,
     };
     // The sums over the views: 1% of each plane's scale on ≥ 97% of the pixels (bilinear
@@ -213,7 +215,7 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
         );
     }
     // The layer from the GPU's own sums.
-    let want = glossy::reference(&inputs, &t.mesh, &comp, &sums);
+    let want = glossy::reference(&inputs, &t.mesh, &comp, (&sums, &irr));
     // The choice of lobe can flip where two explain the views almost equally; bilinear weights
     // on lavapipe are 8-bit fixed point: 1% of the plane's scale on ≥ 97% of the pixels.
     for k in 0..glossy::PLANES {
@@ -296,6 +298,7 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
         intensities: &lighting.intensities,
         originals: &originals,
         alpha_dim: lighting.alpha_dim,
+        keep: &lighting.originals,
     };
     let image = emitters::reference_emitters(
         &t.novel,
@@ -319,6 +322,7 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
     let original = Lighting {
         intensities: vec![0.0],
         alpha_dim: 0.0,
+        ..Default::default()
     };
     r.render(&t.novel, &original, Mode::Glossy, 1.0, None)
         .unwrap();
@@ -332,6 +336,32 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
             assert!(
                 (a - b).abs() <= 1e-5 * b.abs().max(1.0),
                 "original lighting, pixel {p}: {a} vs {b}"
+            );
+        }
+    }
+    // One original light at factor c is α_dim' = α + (1 − α)(1 − c) for the whole frame, the
+    // photos' own highlights (S's first term) included: per-light control's glossy term.
+    let frame = |r: &mut Renderer, l: &Lighting| {
+        r.render(&t.novel, l, Mode::Glossy, 1.0, None).unwrap();
+        let b = r.buffers_ref().unwrap();
+        (planes(&b.glossy, glossy::PLANES * npix), r.hdr().unwrap())
+    };
+    let factor = Lighting {
+        intensities: vec![0.8],
+        alpha_dim: 0.5,
+        originals: vec![[0.5; 3]],
+    };
+    let global = Lighting {
+        intensities: vec![0.8],
+        alpha_dim: 0.75,
+        ..Default::default()
+    };
+    let (a, b) = (frame(&mut r, &factor), frame(&mut r, &global));
+    for (x, y) in a.0.iter().chain(&a.1).zip(b.0.iter().chain(&b.1)) {
+        for k in 0..3 {
+            assert!(
+                (x[k] - y[k]).abs() <= 1e-5 * y[k].abs().max(1.0),
+                "{x:?} vs {y:?}"
             );
         }
     }
@@ -394,6 +424,7 @@ fn a_lamps_highlight_sits_where_the_mirror_direction_puts_it_and_moves_with_it()
     let alone = Lighting {
         intensities: vec![1.0],
         alpha_dim: 1.0,
+        ..Default::default()
     };
     let npix = (t.novel.width * t.novel.height) as usize;
     let mut seen = Vec::new();

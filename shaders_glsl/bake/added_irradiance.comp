@@ -44,7 +44,7 @@ void main() {
     if (dot(n, eye - xp.xyz) < 0.0) n = -n;
     vec3 dir = vec3(0.0);
     for (uint s = 0u; s < pc.samples; ++s)
-        dir += light_direct(pc.light, xp.xyz, n, rand2(uvec3(gi, s * 64u, pc.seed)), 0.0);
+        dir += light_direct(pc.light, xp.xyz, n, rand2(uvec3(gi, s * 64u, pc.seed)), pc.light.radiance.w);
     uvec3 v = uvec3(indices[3u * tri], indices[3u * tri + 1u], indices[3u * tri + 2u]);
     vec3 l = barycentrics(xp.xyz, verts[v.x], verts[v.y], verts[v.z]);
     uvec3 c = uvec3(corner_texel[3u * tri], corner_texel[3u * tri + 1u], corner_texel[3u * tri + 2u]);

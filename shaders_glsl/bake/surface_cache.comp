@@ -71,7 +71,7 @@ void main() {
                 if (rand2(uvec3(t, k + 1u, ~pc.seed)).x >= q) break;
                 thr /= q;
             }
-            sum += thr * light_direct(pc.light, x, n, rand2(uvec3(t, k, pc.seed)), 0.0);
+            sum += thr * light_direct(pc.light, x, n, rand2(uvec3(t, k, pc.seed)), pc.light.radiance.w);
         }
     }
     e_ind[t] = vec4(sum / float(pc.samples), 1.0);

@@ -8,7 +8,7 @@ struct Light {
     vec4 p0;        // quad: corner; disk: centre          (w: 0 = quad, 1 = disk)
     vec4 p1;        // quad: edge_u; disk: normal
     vec4 p2;        // quad: edge_v; disk: (radius, -, -)
-    vec4 radiance;  // rgb
+    vec4 radiance;  // rgb; w: how far in front of the light shadow rays end (GpuLight::traced)
 };
 
 // A point on the light for u in [0,1)^2, its normal, and the light's area.

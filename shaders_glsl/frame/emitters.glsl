@@ -3,7 +3,8 @@
 // - Added lights, at binding 19 (in E_add layer order) with this frame's intensities at binding
 //   11: their radiance where one is met before any surface.
 // - Declared original lights, at binding 29: on the proxy surface they sit on, their glow as
-//   the photos show it, dimmed by α_dim (§4.1.4), plus their own surface's reflection of the
+//   the photos show it, dimmed by α_dim (§4.1.4) and their own factor (binding 32,
+//   frame/lighting.rs), plus their own surface's reflection of the
 //   added lights (its albedo from the bake's albedo mesh around it). The ratio rule would scale
 //   the glow as if it were reflected light.
 #ifndef RELIT_EMITTERS_GLSL
@@ -17,6 +18,8 @@ layout(set = 0, binding = 19, scalar) readonly buffer Emitters { Light emitters[
 // A declared original light and the diffuse albedo of its own surface (frame::output::GpuOriginal).
 struct Original { Light light; vec4 albedo; };
 layout(set = 0, binding = 29, scalar) readonly buffer Originals { Original originals[]; };
+// Each declared original light's factor (rgb; 1: as captured), per-light control.
+layout(set = 0, binding = 32) readonly buffer Keep { vec4 keep[]; };
 
 // Whether the ray (o, unit d) meets a lit added light closer than t; then t becomes its
 // distance and radiance its emitted radiance times its intensity.
@@ -38,7 +41,7 @@ bool nearest_emitter(vec3 o, vec3 d, uint nlights, inout float t, out vec3 radia
 // Whether the proxy point y, seen along unit d, lies on the emitting side of a declared original
 // light (within LIGHT_SKIN of its plane, inside its outline grown by `margin` metres: the pixels
 // the photos' pixel filter spreads its glow into); then radiance is what it shows:
-//   (1 − α_dim) · I + ρ · E_add / π,
+//   (1 − α_dim) · c_l · I + ρ · E_add / π,
 // the ratio rule with the light's albedo ρ taken from its surroundings (the albedo mesh) rather
 // than I / E_src: I holds glow, not only reflected light. I: the photos' radiance at y (`seen`);
 // where no view sees y (black), the light's declared radiance on the light itself, nothing drawn
@@ -52,7 +55,7 @@ bool original_light(vec3 y, vec3 d, uint norig, float alpha_dim, vec3 seen, vec3
         if (dot(d, light_normal(o)) >= 0.0 || !light_near(o, y, LIGHT_SKIN + margin, margin)) continue;
         if (hole && !light_near(o, y, LIGHT_SKIN, 0.0)) continue;
         vec3 glow = hole ? o.radiance.rgb : seen;
-        radiance = (1.0 - alpha_dim) * glow + originals[l].albedo.rgb / 3.14159265358979 * ea;
+        radiance = (1.0 - alpha_dim) * keep[l].rgb * glow + originals[l].albedo.rgb / 3.14159265358979 * ea;
         return true;
     }
     return false;

@@ -9,8 +9,10 @@
 // The photos' view-dependent part in I_1 is Σ w_c·X̄_c (X̄ under I_1's own view weights), lowered
 // together where it would exceed GLOSSY_SHARE of I_1, and D = I_1 minus it, but never below the
 // darkest photo of x (I_8: every photo holds D plus a non-negative view-dependent part).
-// S = (1 − α_dim)·(I_1 − D) + Σ_L i_L Σ_c w_c·X_L,c: the photos' own highlights as they are,
-// dimmed with their lights (eq. 5 would scale them by the diffuse ratio), plus each lit lamp x
+// S = k·(I_1 − D) + Σ_L i_L Σ_c w_c·X_L,c: the photos' own highlights as they are, dimmed with
+// their lights (eq. 5 would scale them by the diffuse ratio; k = 1 − α_dim, or with per-light
+// factors what remains of E_src, 1 − E_rem / E_src: a highlight is taken to come from the
+// original lights in the shares their diffuse light does), plus each lit lamp x
 // sees through the lobes around the novel view's mirror direction (the normal smoothed,
 // lobe.glsl). Under the original lighting the layer gives I_1 back: ratio's image.
 // Output: plane 0 (D, Σ w_c), plane 1 (S, the leading lobe + 1; 0: no fit). Holes (no view)
@@ -30,13 +32,14 @@ layout(local_size_x = 64) in;
 
 layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
 layout(set = 0, binding = 13) readonly buffer Comp { f16vec4 comp[]; };
+layout(set = 0, binding = 14) readonly buffer Irr { vec4 irr[]; };   // E_src, E_add, E_rem
 layout(set = 0, binding = 30) writeonly buffer Glossy { vec4 glossy[]; };
 layout(set = 0, binding = 31) readonly buffer GlossySums { vec4 sums[]; };
 
 layout(push_constant) uniform Push {
     vec4 eye;
     uint width; uint height; uint nactive; uint view_w; uint view_h;
-    uint nlights; uint norig; float alpha_dim;
+    uint nlights; uint norig; float alpha_dim; uint per_light;
 } pc;
 
 #include "lobe.glsl"
@@ -125,5 +128,8 @@ void main() {
     vec3 r = reflect(normalize(x - eye), n);
     uint lead = w.y > w.x ? (w.z > w.y ? 2u : 1u) : (w.z > w.x ? 2u : 0u);
     glossy[p] = vec4(d, w.x + w.y + w.z);
-    glossy[npix + p] = vec4((1.0 - pc.alpha_dim) * (i1 - d) + lamps(x, n, r, w), float(lead + 1u));
+    vec3 kept = vec3(1.0 - pc.alpha_dim);
+    if (pc.per_light != 0u)
+        kept = max(vec3(1.0) - irr[2u * npix + p].rgb / max(irr[p].rgb, vec3(E_FLOOR)), vec3(0.0));
+    glossy[npix + p] = vec4(kept * (i1 - d) + lamps(x, n, r, w), float(lead + 1u));
 }

@@ -31,7 +31,7 @@ layout(set = 0, binding = 31) writeonly buffer GlossySums { vec4 sums[]; };
 layout(push_constant) uniform Push {
     vec4 eye;
     uint width; uint height; uint nactive; uint view_w; uint view_h;
-    uint nlights; uint norig; float alpha_dim;
+    uint nlights; uint norig; float alpha_dim; uint per_light;
 } pc;
 
 #include "lobe.glsl"

@@ -2,7 +2,9 @@
 // Irradiance composites (§4.3.3): E_src and E_add are averages over the active views that see
 // the surface point (depth test), weighted by the inverse distance between each view's camera
 // and the novel camera; E_add mixes the added lights by their current intensities, and
-// E_rem = α_dim · E_src. Live lights (frame/live.glsl) add their E_add at the point itself.
+// E_rem = α_dim · E_src, plus, when some original light has a factor of its own (per_light),
+// (1 − α_dim) times the blend of each view's E_src · removed_share (originals.glsl).
+// Live lights (frame/live.glsl) add their E_add at the point itself.
 // Output: 3 planes of vec4 per pixel (E_src, E_add, E_rem).
 #extension GL_EXT_ray_query : require
 #extension GL_EXT_scalar_block_layout : require
@@ -13,11 +15,12 @@
 layout(local_size_x = 64) in;
 
 #include "frame.glsl"
+#include "emitters.glsl"
+#include "originals.glsl"
 
 layout(set = 0, binding = 6) readonly buffer Active { uint active_views[]; };
 layout(set = 0, binding = 9) uniform sampler2DArray tex_esrc;
 layout(set = 0, binding = 10) uniform sampler2DArray tex_eadd;
-layout(set = 0, binding = 11) readonly buffer Intensity { float intensity[]; };
 layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
 layout(set = 0, binding = 20, r32ui) readonly uniform uimage2D g_tri;
 #include "live.glsl"
@@ -28,6 +31,7 @@ layout(push_constant) uniform Push {
     uint width; uint height; uint nactive; uint view_w; uint view_h;
     uint nviews; uint nlights; float alpha_dim;
     uint nlive; uint live_mask;
+    uint norig; uint nsplit; uint split_layer; uint per_light;
 } pc;
 
 void main() {
@@ -39,14 +43,17 @@ void main() {
     float depth;
     vec3 eye = pc.eye.xyz;
     if (!surface(p, pc.width, eye, x, n, depth)) return;
-    vec3 es = vec3(0.0), ea = vec3(0.0);
+    vec3 es = vec3(0.0), ea = vec3(0.0), er = vec3(0.0);
     float sw = 0.0;
     for (uint a = 0u; a < pc.nactive; ++a) {
         uint j = active_views[a];
         if (visible_pixel(j, x, pc.view_w, pc.view_h) < 0) continue;
         vec2 px = project_px(j, x);
         float w = 1.0 / max(distance(cam_center(cams[j]), eye), 1e-3);
-        es += w * sample_map(tex_esrc, px, j);
+        vec3 esj = sample_map(tex_esrc, px, j);
+        es += w * esj;
+        if (pc.per_light != 0u)
+            er += w * esj * removed_share(tex_eadd, px, j, pc.nviews, pc.norig, pc.nsplit, pc.split_layer);
         vec3 add = vec3(0.0);
         for (uint l = 0u; l < pc.nlights; ++l) {
             if (intensity[l] != 0.0 && !is_live(l, pc.live_mask))
@@ -64,5 +71,7 @@ void main() {
     }
     irr[p] = vec4(es / sw, 1.0);
     irr[npix + p] = vec4(ea / sw + live, 1.0);
-    irr[2u * npix + p] = vec4(pc.alpha_dim * es / sw, 1.0);
+    vec3 rem = pc.alpha_dim * es / sw;
+    if (pc.per_light != 0u) rem += (1.0 - pc.alpha_dim) * er / sw;
+    irr[2u * npix + p] = vec4(rem, 1.0);
 }

@@ -2,7 +2,8 @@
 // Target mirror image M_tgt (§4.2.2, eq. 5): one ray query per pixel in the mirror direction of
 // the novel view at the first surface; its hit y takes its value from the input view whose
 // viewing direction onto y is best aligned with the reflected ray (among all views that see y):
-//   I_i / E_src_i · (E_add_i + E_src_i − E_rem_i),  E_rem_i = α_dim · E_src_i,
+//   I_i / E_src_i · (E_add_i + E_src_i − E_rem_i),  E_rem_i = α_dim · E_src_i (plus, when some
+//   original light has a factor of its own, (1 − α_dim) · E_src_i · removed_share: originals.glsl),
 // read at y's pixel in view i (nearest texel, as the depth test). E_src is floored at E_FLOOR
 // (W/m², constants.table) in the ratio. A lit added light met before y is seen in the mirror: its radiance;
 // a declared original light at y shows its dimmed glow (emitters.glsl).
@@ -18,6 +19,7 @@ layout(local_size_x = 64) in;
 
 #include "frame.glsl"
 #include "emitters.glsl"
+#include "originals.glsl"
 
 layout(set = 0, binding = 7) uniform sampler2DArray tex_img;
 layout(set = 0, binding = 9) uniform sampler2DArray tex_esrc;
@@ -33,6 +35,7 @@ layout(push_constant) uniform Push {
     uint exclude;    // a view left out of the frame (0xFFFFFFFF: none)
     uint nlive; uint live_mask;
     uint norig;      // declared original lights (emitters.glsl)
+    uint nsplit; uint split_layer; uint per_light;   // per-light control (originals.glsl)
 } pc;
 
 void main() {
@@ -72,6 +75,9 @@ void main() {
     if (original_light(y, r, pc.norig, pc.alpha_dim, col, ea, 0.0, le)) { mirror[p] = vec4(le, distance(y, x)); return; }
     if (q < 0) return;
     vec3 es = texelFetch(tex_esrc, ivec3(xy, j), 0).rgb;
-    vec3 modified = ea + es - pc.alpha_dim * es;
+    vec3 rem = pc.alpha_dim * es;
+    if (pc.per_light != 0u)
+        rem += (1.0 - pc.alpha_dim) * es * removed_share(tex_eadd, vec2(xy) + 0.5, j, pc.nviews, pc.norig, pc.nsplit, pc.split_layer);
+    vec3 modified = ea + es - rem;
     mirror[p] = vec4(col / max(es, vec3(E_FLOOR)) * modified, distance(y, x));
 }

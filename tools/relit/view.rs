@@ -14,6 +14,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
+use relit_engine::frame::lighting::AS_CAPTURED;
 use relit_engine::frame::live::PathMoves;
 use relit_engine::frame::{added_lights, Lighting, Mode, Renderer};
 use relit_engine::gpu::{present, Gpu, GpuOptions, PresentMode, Presenter, Timer};
@@ -71,6 +72,8 @@ struct App {
     lighting: Lighting,
     preset_name: String,
     selected_light: usize,
+    /// The declared original light that Z and X dim and brighten.
+    selected_original: usize,
     pos: Vec3,
     yaw: f32,
     pitch: f32,
@@ -174,6 +177,7 @@ impl App {
         s.extend(cam.rotation.to_cols_array());
         s.extend(&self.lighting.intensities);
         s.push(self.lighting.alpha_dim);
+        s.extend(self.lighting.originals.iter().flatten());
         s.push(self.mode as u32 as f32);
         for l in &self.scene.lights {
             s.extend(l.shape.center().to_array());
@@ -211,6 +215,7 @@ impl App {
     /// Keys of the viewer itself (not the light editor's).
     fn app_key(&mut self, code: KeyCode, el: &ActiveEventLoop) -> Result<()> {
         let lights = added_lights(&self.scene);
+        let originals = self.scene.original_names();
         match code {
             KeyCode::Escape => el.exit(),
             KeyCode::F11 => {
@@ -247,6 +252,16 @@ impl App {
                 let up = matches!(code, KeyCode::Equal | KeyCode::NumpadAdd);
                 let v = &mut self.lighting.intensities[self.selected_light];
                 *v = (*v + if up { 0.1 } else { -0.1 }).clamp(0.0, 10.0);
+                self.preset_name = "custom".into();
+            }
+            KeyCode::KeyT if !originals.is_empty() => {
+                self.selected_original = (self.selected_original + 1) % originals.len()
+            }
+            KeyCode::KeyZ | KeyCode::KeyX if !originals.is_empty() => {
+                let d = if code == KeyCode::KeyX { 0.1 } else { -0.1 };
+                self.lighting.originals.resize(originals.len(), AS_CAPTURED);
+                let c = &mut self.lighting.originals[self.selected_original];
+                *c = c.map(|v| (v + d).clamp(0.0, 2.0));
                 self.preset_name = "custom".into();
             }
             KeyCode::BracketLeft | KeyCode::BracketRight => {
@@ -306,6 +321,7 @@ impl App {
                 .zip(self.lighting.intensities.clone())
                 .collect(),
             lights: light_centres(&self.scene),
+            originals: self.lighting.named_factors(&self.scene),
         });
         println!("keyframe {}", rec.keys.len());
         Ok(())
@@ -453,6 +469,8 @@ impl App {
             lighting: self.preset_name.clone(),
             alpha_dim: self.lighting.alpha_dim,
             light: self.light_info(),
+            original: (self.scene.original_names().get(self.selected_original))
+                .map(|n| (n.clone(), self.lighting.factor(self.selected_original))),
             recording: self.recorder.as_ref().map(|(_, r)| r.keys.len()),
             playing: (self.player.as_ref()).map(|p| (p.t, p.path.duration())),
         };
@@ -734,6 +752,7 @@ pub fn view(opts: &GpuOptions, a: ViewArgs) -> Result<()> {
         preset_name: a.lighting.clone().unwrap_or_else(|| "original".into()),
         lighting,
         selected_light: 0,
+        selected_original: 0,
         pos: start.center(),
         yaw: fwd.x.atan2(-fwd.z),
         pitch: fwd.y.clamp(-1.0, 1.0).asin(),

@@ -181,6 +181,7 @@ fn save(scene: &mut Scene, lighting: &Lighting) -> Result<()> {
             .zip(&lighting.intensities)
             .map(|(n, &v)| (n.clone(), v))
             .collect(),
+        originals: lighting.named_factors(scene),
     };
     scene.presets.retain(|p| p.name != "viewer");
     scene.presets.push(preset);

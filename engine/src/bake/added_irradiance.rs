@@ -141,7 +141,7 @@ pub fn reference(
             let n = facing_normal(d, gi, view);
             let x = Vec3::from_slice(&d.pos[gi][..3]);
             let dir = (0..p.samples)
-                .map(|s| light.direct(mesh, x, n, rand2([gi as u32, s * 64, p.seed]), 0.0))
+                .map(|s| light.direct(mesh, x, n, rand2([gi as u32, s * 64, p.seed]), light.lift()))
                 .sum::<Vec3>()
                 / p.samples as f32;
             let e = dir + layout.lookup(mesh, cache, d.tri[gi] as usize - 1, x);

@@ -44,6 +44,22 @@ impl GpuLight {
         }
     }
 
+    /// The light as the bake traces it: `new`, and for a declared original light (baked for its
+    /// share of E_src, per-light control) the lift of its shadow rays in `radiance.w`: it sits on
+    /// the proxy's ceiling or wall, which must not shadow it (`light_direct`'s `lift`).
+    pub fn traced(l: &Light) -> GpuLight {
+        let mut g = GpuLight::new(l);
+        if l.original {
+            g.radiance[3] = crate::constants::LIGHT_SKIN;
+        }
+        g
+    }
+
+    /// How far in front of the light its shadow rays end (see [`GpuLight::traced`]).
+    pub fn lift(&self) -> f32 {
+        self.radiance[3]
+    }
+
     /// The unit normal of the emitting side (`light_normal`).
     pub fn normal(&self) -> Vec3 {
         let v = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);

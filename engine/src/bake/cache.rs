@@ -126,7 +126,7 @@ impl BakeCache {
     /// re-bakes the light entries alone.
     pub fn light_dir(&self, light: &Light, p: &BakeParams) -> PathBuf {
         let mut h = Fnv::new();
-        h.bytes(bytemuck::bytes_of(&GpuLight::new(light)));
+        h.bytes(bytemuck::bytes_of(&GpuLight::traced(light)));
         for v in [p.added_samples, p.cache_samples, p.bounces] {
             h.bytes(&v.to_le_bytes());
         }
@@ -158,7 +158,8 @@ impl BakeCache {
                 .all(|v| self.esrc(&v.name).exists() && self.msrc(&v.name).exists())
     }
 
-    /// The added lights of `p` whose entry lacks a view's map.
+    /// The added lights of `p`, and the original lights when E_src is split among them
+    /// ([`super::run::splits_originals`]), whose entry lacks a view's map.
     pub fn missing_lights<'a>(&self, scene: &'a Scene, p: &BakeParams) -> Vec<&'a Light> {
         let missing = |l: &Light| {
             scene
@@ -166,10 +167,8 @@ impl BakeCache {
                 .iter()
                 .any(|v| !self.eadd(&v.name, l, p).exists())
         };
-        scene
-            .lights
-            .iter()
-            .filter(|l| p.wants(l) && missing(l))
+        super::run::entry_lights(scene)
+            .filter(|l| (l.original || p.wants(l)) && missing(l))
             .collect()
     }
 

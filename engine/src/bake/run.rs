@@ -276,7 +276,9 @@ pub fn bake(
     if scene.views.iter().all(|v| cache.esrc(&v.name).exists()) {
         let albedo = st.albedo_mesh()?;
         st.mirror(&slice)?;
-        let lights: Vec<&Light> = scene.lights.iter().filter(|l| p.wants(l)).collect();
+        let lights: Vec<&Light> = entry_lights(scene)
+            .filter(|l| l.original || p.wants(l))
+            .collect();
         let Stages {
             s,
             progress,
@@ -531,6 +533,22 @@ impl Stages<'_> {
     }
 }
 
+/// Whether the bake splits E_src among the declared original lights (per-light control,
+/// `frame/lighting.rs`): with two or more, each has an entry as an added light has (its surface
+/// cache and E_add maps from its declared radiance), its simulated share of E_src. One original
+/// light needs none: E_src is all its own.
+pub fn splits_originals(scene: &Scene) -> bool {
+    scene.lights.iter().filter(|l| l.original).count() >= 2
+}
+
+/// The lights with entries of their own, in the frame's E_add layer order: the added lights,
+/// then the declared original ones when the bake splits E_src among them.
+pub fn entry_lights(scene: &Scene) -> impl Iterator<Item = &Light> + Clone {
+    let split = splits_originals(scene);
+    let added = scene.lights.iter().filter(|l| !l.original);
+    added.chain(scene.lights.iter().filter(move |l| split && l.original))
+}
+
 /// Whether E_src's indirect part comes from the source cache: when asked for and the scene
 /// declares original lights (without them their light reaches E_src through the views' pixels,
 /// whose shadows texels would blur).
@@ -595,7 +613,7 @@ pub fn light_caches(
                 &glayout,
                 &layout,
                 &ab,
-                &GpuLight::new(l),
+                &GpuLight::traced(l),
                 p,
                 &mut |d, n| progress.update(&stage, d as usize, n as usize, 0),
             )?;
@@ -639,7 +657,7 @@ fn added_stage(
         if todo.is_empty() {
             continue;
         }
-        let gl = GpuLight::new(l);
+        let gl = GpuLight::traced(l);
         let cf = cache.surface_cache(l, p);
         let values = if cf.exists() {
             BakeCache::read_texels(&cf, layout.texels())?

@@ -356,7 +356,7 @@ pub fn reference(
                         }
                         thr /= q;
                     }
-                    sum += thr * light.direct(mesh, x, n, rand2([tk, k, p.seed]), 0.0);
+                    sum += thr * light.direct(mesh, x, n, rand2([tk, k, p.seed]), light.lift());
                 }
             }
             (sum / p.cache_samples as f32).extend(1.0).into()

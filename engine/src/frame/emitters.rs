@@ -93,36 +93,37 @@ pub fn original_glow(
     d: Vec3,
     seen: Vec3,
     margin: f32,
-) -> Option<(Vec3, &GpuOriginal)> {
+) -> Option<(Vec3, usize)> {
     let hole = seen == Vec3::ZERO;
-    let o = originals.iter().find(|o| {
+    let i = originals.iter().position(|o| {
         let l = &o.light;
         let near = d.dot(l.normal()) < 0.0 && l.near(y, LIGHT_SKIN + margin, margin);
         near && (!hole || l.near(y, LIGHT_SKIN, 0.0))
     })?;
     let glow = if hole {
-        Vec3::from_slice(&o.light.radiance[..3])
+        Vec3::from_slice(&originals[i].light.radiance[..3])
     } else {
         seen
     };
-    Some((glow, o))
+    Some((glow, i))
 }
 
 /// CPU mirror of `original_light`: what the proxy point `y`, seen along unit `d`, shows when it
-/// lies on a declared original light: (1 − α_dim) · glow + ρ · E_add / π, the ratio rule with
-/// the light's albedo ρ taken from its surroundings ([`original_glow`], [`GpuOriginal::new`];
-/// `ea`: E_add at `y`).
+/// lies on a declared original light l: (1 − α_dim) · c_l · glow + ρ · E_add / π, the ratio
+/// rule with the light's albedo ρ taken from its surroundings ([`original_glow`],
+/// [`GpuOriginal::new`]; `ea`: E_add at `y`; c_l: `keep[l]`, 1 where missing).
 pub fn original_light(
     originals: &[GpuOriginal],
-    alpha_dim: f32,
+    (alpha_dim, keep): (f32, &[[f32; 3]]),
     (y, d): (Vec3, Vec3),
     seen: Vec3,
     ea: Vec3,
     margin: f32,
 ) -> Option<Vec3> {
-    let (glow, o) = original_glow(originals, y, d, seen, margin)?;
-    let rho = Vec3::from_slice(&o.albedo[..3]);
-    Some((1.0 - alpha_dim) * glow + rho / std::f32::consts::PI * ea)
+    let (glow, l) = original_glow(originals, y, d, seen, margin)?;
+    let rho = Vec3::from_slice(&originals[l].albedo[..3]);
+    let c = Vec3::from(keep.get(l).copied().unwrap_or([1.0; 3]));
+    Some((1.0 - alpha_dim) * c * glow + rho / std::f32::consts::PI * ea)
 }
 
 /// Metres around a point at camera depth `z` that `LEAK_PX` pixels of `cam` span: how far the
@@ -155,7 +156,10 @@ pub fn original_glow_image(
             let on =
                 (g[3] > 0.0).then(|| original_glow(originals, y, pixel_ray(cam, p), seen, margin));
             match on.flatten() {
-                Some((glow, o)) => (glow.into(), [o.albedo[0], o.albedo[1], o.albedo[2]]),
+                Some((glow, l)) => {
+                    let a = originals[l].albedo;
+                    (glow.into(), [a[0], a[1], a[2]])
+                }
                 None => ([0.0; 3], [0.0; 3]),
             }
         })
@@ -163,13 +167,15 @@ pub fn original_glow_image(
 }
 
 /// The lights a frame draws where they are seen (`frame/emitters.glsl`): the added lights at
-/// this frame's intensities, the declared original lights dimmed by α_dim.
+/// this frame's intensities, the declared original lights dimmed by α_dim and their factors
+/// (`keep`, [`super::Lighting::originals`]: 1 where missing).
 #[derive(Clone, Copy)]
 pub struct Drawn<'a> {
     pub added: &'a [GpuLight],
     pub intensities: &'a [f32],
     pub originals: &'a [GpuOriginal],
     pub alpha_dim: f32,
+    pub keep: &'a [[f32; 3]],
 }
 
 /// CPU reference of the lights drawn over a mode's output `base` (linear RGB per pixel;
@@ -189,7 +195,7 @@ pub fn reference_emitters(
             let d = pixel_ray(cam, p);
             let (g, pos) = (gpos[p], v3(&gpos[p]));
             let t = if g[3] > 0.0 { pos.distance(eye) } else { 1e30 };
-            let (o, a) = (drawn.originals, drawn.alpha_dim);
+            let (o, a) = (drawn.originals, (drawn.alpha_dim, drawn.keep));
             let margin = leak_margin(cam, g[3]);
             let seen = (g[3] > 0.0)
                 .then(|| original_light(o, a, (pos, d), v3(&comp[p]), v3(&eadd[p]), margin))

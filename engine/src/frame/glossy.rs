@@ -32,13 +32,15 @@ pub struct Push {
     pub nlights: u32,
     pub norig: u32,
     pub alpha_dim: f32,
+    /// Whether some original light has a factor of its own ([`super::Lighting::per_light`]).
+    pub per_light: u32,
 }
 
 /// Push as its shaders' push block declares it (tests/gpu.rs checks).
 pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
     Push,
     [shaders::FRAME_GLOSSY, shaders::FRAME_GLOSSY_SUMS],
-    [eye, width, height, nactive, view_w, view_h, nlights, norig, alpha_dim]
+    [eye, width, height, nactive, view_w, view_h, nlights, norig, alpha_dim, per_light]
 );
 
 pub const SHADER: crate::gpu::Shader = shaders::FRAME_GLOSSY;
@@ -286,13 +288,25 @@ fn strengths(r: &RefInputs, sums: &[[f32; 4]], p: usize) -> Option<[f32; LOBES]>
     Some([0, 1, 2].map(|c| kappa * s[c] * om[c] / total))
 }
 
+/// What remains of the photos' own highlights at pixel p: 1 − α_dim, or with per-light factors
+/// what remains of E_src there, 1 − E_rem / E_src (`glossy.comp`).
+fn kept(r: &RefInputs, irr: &[[f32; 4]], p: usize) -> Vec3 {
+    if !r.per_light() {
+        return Vec3::splat(1.0 - r.alpha_dim);
+    }
+    let npix = (r.width * r.height) as usize;
+    let es = Vec3::from_slice(&irr[p][..3]).max(Vec3::splat(crate::constants::E_FLOOR));
+    (Vec3::ONE - Vec3::from_slice(&irr[2 * npix + p][..3]) / es).max(Vec3::ZERO)
+}
+
 /// CPU reference of the layer pass: 2 planes of `width × height` vec4, from the frame's
-/// composites (I_1, I_8) and glossy sums as the passes wrote them.
+/// composites (I_1, I_8), glossy sums and irradiance planes (E_src, E_add, E_rem) as the passes
+/// wrote them.
 pub fn reference(
     r: &RefInputs,
     mesh: &Mesh,
     comp: &[[f32; 4]],
-    sums: &[[f32; 4]],
+    (sums, irr): (&[[f32; 4]], &[[f32; 4]]),
 ) -> Vec<[f32; 4]> {
     let npix = (r.width * r.height) as usize;
     let mut out = vec![[0f32; 4]; PLANES * npix];
@@ -319,7 +333,7 @@ pub fn reference(
         let i8 = Vec3::from_slice(&comp[7 * npix + p][..3]);
         let d = (i1 - cap * xm).max(i8.min(i1)).max(Vec3::ZERO);
         let n = smooth_normal(r, p, n);
-        let st = (1.0 - r.alpha_dim) * (i1 - d) + lamps(r, mesh, (x, n), w);
+        let st = kept(r, irr, p) * (i1 - d) + lamps(r, mesh, (x, n), w);
         let lead = (0..LOBES).fold(0, |b, c| if w[c] > w[b] { c } else { b });
         out[p] = [d.x, d.y, d.z, w.iter().sum()];
         out[npix + p] = [st.x, st.y, st.z, (lead + 1) as f32];

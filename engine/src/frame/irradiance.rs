@@ -21,13 +21,35 @@ pub struct Push {
     pub alpha_dim: f32,
     pub nlive: u32,
     pub live_mask: u32,
+    /// Per-light control (frame/lighting.rs): the declared original lights, those with E_add
+    /// layers (0 or all), the first of those layers, and whether some has a factor of its own.
+    pub norig: u32,
+    pub nsplit: u32,
+    pub split_layer: u32,
+    pub per_light: u32,
 }
 
 /// Push as its shaders' push block declares it (tests/gpu.rs checks).
 pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
     Push,
     [shaders::FRAME_IRRADIANCE],
-    [eye, width, height, nactive, view_w, view_h, nviews, nlights, alpha_dim, nlive, live_mask]
+    [
+        eye,
+        width,
+        height,
+        nactive,
+        view_w,
+        view_h,
+        nviews,
+        nlights,
+        alpha_dim,
+        nlive,
+        live_mask,
+        norig,
+        nsplit,
+        split_layer,
+        per_light
+    ]
 );
 
 pub const SHADER: crate::gpu::Shader = shaders::FRAME_IRRADIANCE;
@@ -41,7 +63,7 @@ pub fn reference(r: &RefInputs) -> Vec<[f32; 4]> {
     let nviews = r.data.cameras.len();
     for p in 0..npix {
         let Some((x, n)) = r.surface(p) else { continue };
-        let (mut es, mut ea, mut sw) = (Vec3::ZERO, Vec3::ZERO, 0f32);
+        let (mut es, mut ea, mut er, mut sw) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, 0f32);
         for &j in r.active {
             let j = j as usize;
             if r.data.visible_pixel(j, x).is_none() {
@@ -49,7 +71,11 @@ pub fn reference(r: &RefInputs) -> Vec<[f32; 4]> {
             }
             let px = project_px(r.data, j, x);
             let w = 1.0 / r.data.cameras[j].center().distance(r.eye).max(1e-3);
-            es += w * sample_bilinear(&r.maps.esrc[j], vw, vh, px);
+            let esj = sample_bilinear(&r.maps.esrc[j], vw, vh, px);
+            es += w * esj;
+            if r.per_light() {
+                er += w * esj * r.removed_share(j, px);
+            }
             let mut add = Vec3::ZERO;
             for (l, &s) in r.intensities.iter().enumerate() {
                 if s != 0.0 && !r.live.as_ref().is_some_and(|v| v.is_live(l)) {
@@ -66,7 +92,11 @@ pub fn reference(r: &RefInputs) -> Vec<[f32; 4]> {
                 }
                 _ => Vec3::ZERO,
             };
-            let (a, b, c) = (es / sw, ea / sw + live, r.alpha_dim * es / sw);
+            let mut c = r.alpha_dim * es / sw;
+            if r.per_light() {
+                c += (1.0 - r.alpha_dim) * er / sw;
+            }
+            let (a, b) = (es / sw, ea / sw + live);
             out[p] = [a.x, a.y, a.z, 1.0];
             out[npix + p] = [b.x, b.y, b.z, 1.0];
             out[2 * npix + p] = [c.x, c.y, c.z, 1.0];

@@ -29,8 +29,10 @@ pub struct HostMaps {
     pub img: Vec<Vec<[f32; 4]>>,
     pub msrc: Vec<Vec<[f32; 4]>>,
     pub esrc: Vec<Vec<[f32; 4]>>,
-    /// Layer `light * views + view`.
+    /// Layer `light * views + view`: the added lights, then (the last `split` lights) the
+    /// declared original lights when the bake splits E_src among them (frame/lighting.rs).
     pub eadd: Vec<Vec<[f32; 4]>>,
+    pub split: usize,
     /// Added lights the bake has no entry for (not used yet): their layers are zero.
     pub unbaked: Vec<String>,
 }
@@ -195,7 +197,7 @@ impl ViewMaps {
         };
         let msrc = files(&|v| cache.msrc(v));
         let esrc = files(&|v| cache.esrc(v));
-        let lights: Vec<_> = scene.lights.iter().filter(|l| !l.original).collect();
+        let lights: Vec<_> = crate::bake::run::entry_lights(scene).collect();
         let mut eadd = Some(Vec::new());
         for l in &lights {
             match (files(&|v| cache.eadd(v, l, params)), eadd.as_mut()) {

@@ -7,6 +7,7 @@ pub mod emitters;
 pub mod features;
 pub mod glossy;
 pub mod irradiance;
+pub mod lighting;
 pub mod live;
 pub mod maps;
 pub mod output;
@@ -19,6 +20,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
+pub use lighting::{added_lights, Lighting};
 pub use maps::{HostMaps, LightingMap, MapFormat, ViewMaps};
 
 use crate::bake::{run as bakerun, BakeCache, BakeParams, GpuLight, GpuViews, ViewData};
@@ -33,89 +35,6 @@ use crate::scene::{Camera, Light, Scene};
 /// At most this many input views take part in one frame (`constants.table`; which ones:
 /// [`view_cull`]).
 pub const MAX_ACTIVE: usize = crate::constants::MAX_ACTIVE as usize;
-
-/// The user's lighting: one intensity per added light (the scene's non-original lights, in
-/// scene order) and α_dim (§4.1.4: 0 keeps the original lighting, 1 removes it).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Lighting {
-    pub intensities: Vec<f32>,
-    pub alpha_dim: f32,
-}
-
-impl Lighting {
-    /// The captured lighting: no added light, nothing dimmed.
-    pub fn original(scene: &Scene) -> Lighting {
-        Lighting {
-            intensities: vec![0.0; added_lights(scene).len()],
-            alpha_dim: 0.0,
-        }
-    }
-
-    /// A named preset of the scene.
-    pub fn preset(scene: &Scene, name: &str) -> Result<Lighting> {
-        let p = scene.preset(name).ok_or_else(|| {
-            let names: Vec<_> = scene.presets.iter().map(|p| p.name.as_str()).collect();
-            Error::Other(format!(
-                "no lighting preset \"{name}\" in {} (presets: {})",
-                scene.root.display(),
-                if names.is_empty() {
-                    "none".to_string()
-                } else {
-                    names.join(", ")
-                }
-            ))
-        })?;
-        Ok(Lighting {
-            intensities: added_lights(scene)
-                .iter()
-                .map(|l| p.intensities.get(l.as_str()).copied().unwrap_or(0.0))
-                .collect(),
-            alpha_dim: p.dim,
-        })
-    }
-}
-
-impl Lighting {
-    /// The lighting of a camera path at some time; every named light must be an added light.
-    pub fn from_path(
-        scene: &Scene,
-        l: &crate::scene::path::PathLighting,
-        file: &Path,
-    ) -> Result<Lighting> {
-        let names = added_lights(scene);
-        if let Some(n) = l
-            .intensities
-            .keys()
-            .chain(l.moves.keys())
-            .find(|n| !names.contains(n))
-        {
-            return Err(Error::input(
-                file,
-                format!(
-                    "lighting: \"{n}\" is not an added light of the scene (added lights: {})",
-                    names.join(", ")
-                ),
-            ));
-        }
-        Ok(Lighting {
-            intensities: names
-                .iter()
-                .map(|n| l.intensities.get(n).copied().unwrap_or(0.0))
-                .collect(),
-            alpha_dim: l.dim,
-        })
-    }
-}
-
-/// Names of the added (non-original) lights, in the order of the E_add layers.
-pub fn added_lights(scene: &Scene) -> Vec<String> {
-    scene
-        .lights
-        .iter()
-        .filter(|l| !l.original)
-        .map(|l| l.name.clone())
-        .collect()
-}
 
 /// What the CPU references read: the views, the host maps, the novel G-buffer and the frame's
 /// parameters.
@@ -136,6 +55,9 @@ pub struct RefInputs<'a> {
     pub emitters: &'a [GpuLight],
     /// The declared original lights (drawn where seen, dimmed).
     pub originals: &'a [emitters::GpuOriginal],
+    /// Their factors ([`Lighting::originals`]; 1 where missing). `maps.split` of them have E_add
+    /// layers, the last ones of `maps.eadd`.
+    pub keep: &'a [[f32; 3]],
     /// Live lights, when some are (frame/live.rs).
     pub live: Option<LiveRef<'a>>,
 }
@@ -181,6 +103,28 @@ impl LiveRef<'_> {
 }
 
 impl RefInputs<'_> {
+    /// α_dim and the original lights' factors.
+    pub fn dim(&self) -> (f32, &[[f32; 3]]) {
+        (self.alpha_dim, self.keep)
+    }
+
+    /// Whether some original light has a factor of its own ([`Lighting::per_light`]).
+    pub fn per_light(&self) -> bool {
+        self.keep.iter().any(|c| *c != lighting::AS_CAPTURED)
+    }
+
+    /// CPU mirror of `removed_share` (originals.glsl) at view j's pixel px.
+    pub fn removed_share(&self, j: usize, px: glam::Vec2) -> Vec3 {
+        let (m, nviews) = (self.maps, self.data.cameras.len());
+        let first = m.eadd.len() / nviews - m.split;
+        let sims: Vec<Vec3> = (0..m.split)
+            .map(|l| {
+                maps::sample_bilinear(&m.eadd[(first + l) * nviews + j], m.width, m.height, px)
+            })
+            .collect();
+        lighting::removed_share(&sims, self.keep, self.originals.len())
+    }
+
     /// The surface point at pixel p and its normal facing the novel camera.
     pub fn surface(&self, p: usize) -> Option<(Vec3, Vec3)> {
         let g = self.gpos[p];
@@ -213,9 +157,13 @@ pub struct FrameScene {
     pub unbaked: Vec<String>,
     pub emitters: Vec<GpuLight>,
     emitter_buf: Buffer,
-    /// The declared original lights (drawn where seen, dimmed by α_dim).
+    /// The declared original lights (drawn where seen, dimmed by α_dim and their factors).
     pub originals: Vec<emitters::GpuOriginal>,
     original_buf: Buffer,
+    /// The original lights with E_add layers of their own (0 or all of them: E_src split among
+    /// them, frame/lighting.rs), from E_add layer `split_layer` on (light-major).
+    pub split: u32,
+    pub split_layer: u32,
     pub sampler: Sampler,
 }
 
@@ -276,6 +224,7 @@ impl FrameScene {
         } else {
             GpuViews::build_streamed(gpu, &rs, cameras, |j| Ok(rgba(j).collect()))?
         };
+        let (split, nviews) = (host.split as u32, cameras.len() as u32);
         let maps = maps(host)?;
         let added: Vec<&Light> = lights.iter().filter(|l| !l.original).collect();
         let emitters: Vec<GpuLight> = added.iter().map(|l| GpuLight::new(l)).collect();
@@ -293,6 +242,8 @@ impl FrameScene {
             emitters,
             original_buf: light_buffer(gpu, "frame original lights", &originals)?,
             originals,
+            split,
+            split_layer: added.len() as u32 * nviews,
             sampler: Sampler::linear(gpu)?,
         })
     }
@@ -319,6 +270,10 @@ impl FrameScene {
         let maps = |h: HostMaps| ViewMaps::upload_cached(gpu, scene, params, h, &mut load, format);
         let mut fs = FrameScene::build(gpu, &mesh, &cams, host, &scene.lights, false, maps)?;
         fs.unbaked = unbaked;
+        // The loaders read every original light's layers or fail (relit render bakes them first).
+        if bakerun::splits_originals(scene) {
+            fs.split = scene.lights.iter().filter(|l| l.original).count() as u32;
+        }
         let cache = BakeCache::of(scene, params)?;
         let albedo = cache.read_albedo(mesh.positions.len())?;
         fs.originals = original_lights(&scene.lights, Some((&mesh, &albedo)));
@@ -406,10 +361,11 @@ fn load_lighting_map(
         }
         LightingMap::Eadd => {
             let npix = (m.width * m.height) as usize;
-            for l in scene.lights.iter().filter(|l| !l.original) {
+            for l in crate::bake::run::entry_lights(scene) {
                 let files: Vec<_> = views().map(|v| cache.eadd(&v.name, l, params)).collect();
+                m.split += l.original as usize;
                 // A light no map was baked for has not been used yet: zero layers, refused if lit.
-                if files.iter().all(|f| !f.exists()) {
+                if !l.original && files.iter().all(|f| !f.exists()) {
                     m.unbaked.push(l.name.clone());
                     m.eadd.extend(files.iter().map(|_| vec![[0.0; 4]; npix]));
                     continue;
@@ -480,6 +436,8 @@ pub struct FrameBuffers {
     pub cull_seen: Buffer,
     pub cull_points: Buffer,
     pub intensity: Buffer,
+    /// The original lights' factors (`Keep`, [`Lighting::keep_buffer`]).
+    pub keep: Buffer,
     pub input: Tensor,
     pub hdr: Buffer,
     pub ldr: Buffer,
@@ -647,6 +605,10 @@ impl Renderer {
             )?,
             cull_points: readable("view culling points", (grid.0 * grid.1 * 16) as u64)?,
             intensity: buf("frame intensities", nl * 4)?,
+            keep: buf(
+                "frame original factors",
+                self.scene.originals.len().max(1) as u64 * 16,
+            )?,
             input: Tensor::new(
                 gpu,
                 "frame input",
@@ -733,6 +695,8 @@ impl Renderer {
         let mut ints = lighting.intensities.clone();
         ints.resize(self.scene.lights.len().max(1), 0.0);
         b.intensity.upload(bytemuck::cast_slice(&ints))?;
+        let keep = lighting.keep_buffer(self.scene.originals.len());
+        b.keep.upload(bytemuck::cast_slice(&keep))?;
         let push = self.pushes(cam, lighting, mode, exposure);
         let threads = (cam.width * cam.height, 1, 1);
         // The passes that only feed the network (see `display_only`).
@@ -828,6 +792,18 @@ impl Renderer {
                 "added light \"{name}\" is lit but not baked: bake it first (`relit bake SCENE --lights {name}`)"
             )));
         }
+        let norig = self.scene.originals.len();
+        if lighting.originals.len() > norig {
+            return Err(Error::Other(format!(
+                "lighting has {} original-light factors; the scene declares {norig} original lights",
+                lighting.originals.len()
+            )));
+        }
+        if lighting.per_light() && norig >= 2 && self.scene.split == 0 {
+            return Err(Error::Other(
+                "a factor for one original light needs their entries in the bake: run `relit bake` again".into(),
+            ));
+        }
         Ok(())
     }
 
@@ -841,6 +817,8 @@ impl Renderer {
         let (nlights, norig) = (s.lights.len() as u32, s.originals.len() as u32);
         let (nlive, live_mask) = (self.live.count(), self.live.mask());
         let (alpha_dim, nactive) = (lighting.alpha_dim, self.active.len() as u32);
+        let (nsplit, split_layer) = (s.split, s.split_layer);
+        let per_light = lighting.per_light() as u32;
         Pushes {
             reproject: reproject::Push {
                 eye,
@@ -862,6 +840,10 @@ impl Renderer {
                 alpha_dim,
                 nlive,
                 live_mask,
+                norig,
+                nsplit,
+                split_layer,
+                per_light,
             },
             target_mirror: target_mirror::Push {
                 eye,
@@ -876,6 +858,9 @@ impl Renderer {
                 nlive,
                 live_mask,
                 norig,
+                nsplit,
+                split_layer,
+                per_light,
             },
             glossy: glossy::Push {
                 eye,
@@ -887,6 +872,7 @@ impl Renderer {
                 nlights,
                 norig,
                 alpha_dim,
+                per_light,
             },
             features: features::Push { eye, width, height },
             output: output::Push {
@@ -1013,6 +999,7 @@ impl Renderer {
             .set("tex_esrc", Bind::Sampled(s.maps.esrc.view, sm))
             .set("tex_eadd", Bind::Sampled(s.maps.eadd.view, sm))
             .set("Intensity", Bind::Buffer(&b.intensity))
+            .set("Keep", Bind::Buffer(&b.keep))
             .set("tlas", Bind::Accel(s.mesh.tlas.raw))
             .set("Comp", Bind::Buffer(&b.comp))
             .set("Irr", Bind::Buffer(&b.irr))

@@ -21,6 +21,11 @@ pub struct Push {
     pub nlive: u32,
     pub live_mask: u32,
     pub norig: u32,
+    /// Per-light control (frame/lighting.rs): the original lights with E_add layers, the first
+    /// of those layers, and whether some original light has a factor of its own.
+    pub nsplit: u32,
+    pub split_layer: u32,
+    pub per_light: u32,
 }
 
 /// Push as its shaders' push block declares it (tests/gpu.rs checks).
@@ -28,8 +33,21 @@ pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
     Push,
     [shaders::FRAME_TARGET_MIRROR],
     [
-        eye, width, height, view_w, view_h, nviews, nlights, alpha_dim, exclude, nlive, live_mask,
-        norig
+        eye,
+        width,
+        height,
+        view_w,
+        view_h,
+        nviews,
+        nlights,
+        alpha_dim,
+        exclude,
+        nlive,
+        live_mask,
+        norig,
+        nsplit,
+        split_layer,
+        per_light
     ]
 );
 
@@ -79,8 +97,7 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
                 ea += v.eadd(r.intensities, y, ny, h.tri as usize, p as u32);
             }
             let col = q.map_or(Vec3::ZERO, |_| v3(r.maps.img[j][qp]));
-            let glow =
-                super::emitters::original_light(r.originals, r.alpha_dim, (y, rd), col, ea, 0.0);
+            let glow = super::emitters::original_light(r.originals, r.dim(), (y, rd), col, ea, 0.0);
             if let Some(le) = glow {
                 return [le.x, le.y, le.z, y.distance(x)];
             }
@@ -88,8 +105,15 @@ pub fn reference(r: &RefInputs, mesh: &Mesh) -> Vec<[f32; 4]> {
                 return [0.0; 4];
             }
             let es = v3(r.maps.esrc[j][qp]);
-            let m =
-                col / es.max(Vec3::splat(crate::constants::E_FLOOR)) * (ea + es - r.alpha_dim * es);
+            let mut rem = r.alpha_dim * es;
+            if r.per_light() {
+                let px = glam::Vec2::new(
+                    (qp % r.maps.width as usize) as f32 + 0.5,
+                    (qp / r.maps.width as usize) as f32 + 0.5,
+                );
+                rem += (1.0 - r.alpha_dim) * es * r.removed_share(j, px);
+            }
+            let m = col / es.max(Vec3::splat(crate::constants::E_FLOOR)) * (ea + es - rem);
             [m.x, m.y, m.z, y.distance(x)]
         })
         .collect()

@@ -186,6 +186,43 @@ pub(crate) struct PresetDoc {
     pub dim: f32,
     #[serde(default)]
     pub intensities: BTreeMap<String, f32>,
+    /// Per declared original light, its factor: one number (grey) or RGB.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub originals: BTreeMap<String, Factor>,
+}
+
+/// A light's factor as a document writes it: one number for all channels, or RGB.
+#[derive(Clone, Copy, Serialize, Deserialize)]
+#[serde(
+    untagged,
+    expecting = "an original light's factor: one number or [r, g, b]"
+)]
+pub(crate) enum Factor {
+    Grey(f32),
+    Rgb([f32; 3]),
+}
+
+impl Factor {
+    pub fn rgb(self) -> [f32; 3] {
+        match self {
+            Factor::Grey(v) => [v; 3],
+            Factor::Rgb(c) => c,
+        }
+    }
+
+    /// Grey when the channels agree, so a document keeps what its author wrote.
+    pub fn of(c: [f32; 3]) -> Factor {
+        if c[0] == c[1] && c[1] == c[2] {
+            Factor::Grey(c[0])
+        } else {
+            Factor::Rgb(c)
+        }
+    }
+}
+
+/// Factors by light name, as RGB.
+pub(crate) fn factors(m: &BTreeMap<String, Factor>) -> BTreeMap<String, [f32; 3]> {
+    m.iter().map(|(k, v)| (k.clone(), v.rgb())).collect()
 }
 
 impl CameraDoc {
@@ -322,6 +359,7 @@ fn presets(docs: &[PresetDoc]) -> Vec<LightingPreset> {
             name: p.name.clone(),
             dim: p.dim,
             intensities: p.intensities.clone(),
+            originals: factors(&p.originals),
         })
         .collect()
 }
@@ -332,6 +370,11 @@ fn preset_docs(p: &[LightingPreset]) -> Vec<PresetDoc> {
             name: p.name.clone(),
             dim: p.dim,
             intensities: p.intensities.clone(),
+            originals: p
+                .originals
+                .iter()
+                .map(|(k, v)| (k.clone(), Factor::of(*v)))
+                .collect(),
         })
         .collect()
 }

@@ -257,12 +257,14 @@ impl Light {
     }
 }
 
-/// Intensities of the added lights and the dimming of the original lighting, `α_dim` (§4.1.4).
+/// Intensities of the added lights and the dimming of the original lighting, `α_dim` (§4.1.4),
+/// and each declared original light's own factor (RGB; 1: as captured), on top of α_dim.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LightingPreset {
     pub name: String,
     pub dim: f32,
     pub intensities: BTreeMap<String, f32>,
+    pub originals: BTreeMap<String, [f32; 3]>,
 }
 
 #[derive(Clone, Debug)]
@@ -470,25 +472,59 @@ impl Scene {
                     ),
                 ));
             }
-            for (l, v) in &p.intensities {
-                if !self.lights.iter().any(|x| &x.name == l) {
-                    return Err(Error::input(
-                        file,
-                        format!(
-                            "preset {}: names light \"{l}\", which the scene does not have",
-                            p.name
-                        ),
-                    ));
+            self.validate_preset(file, p)?;
+        }
+        Ok(())
+    }
+}
+
+impl Scene {
+    /// A preset's intensities name added lights, its `originals` declared original lights, each
+    /// value finite and >= 0.
+    fn validate_preset(&self, file: &Path, p: &LightingPreset) -> Result<()> {
+        let bad = |m: String| Err(Error::input(file, format!("preset {}: {m}", p.name)));
+        let kind = |name: &str| {
+            self.lights
+                .iter()
+                .find(|x| x.name == name)
+                .map(|x| x.original)
+        };
+        for (l, v) in &p.intensities {
+            match kind(l) {
+                None => {
+                    return bad(format!(
+                        "names light \"{l}\", which the scene does not have"
+                    ))
                 }
-                if !(v.is_finite() && *v >= 0.0) {
-                    return Err(Error::input(
-                        file,
-                        format!("preset {}: intensity of {l} is {v}; expected >= 0", p.name),
-                    ));
+                Some(true) => {
+                    return bad(format!(
+                    "intensities: \"{l}\" is an original light; set its factor under \"originals\""
+                ))
                 }
+                Some(false) => {}
+            }
+            if !(v.is_finite() && *v >= 0.0) {
+                return bad(format!("intensity of {l} is {v}; expected >= 0"));
+            }
+        }
+        for (l, v) in &p.originals {
+            if kind(l) != Some(true) {
+                return bad(format!(
+                    "originals: \"{l}\" is not a declared original light of the scene (original lights: {})",
+                    self.original_names().join(", ")
+                ));
+            }
+            if !v.iter().all(|c| c.is_finite() && *c >= 0.0) {
+                return bad(format!("originals: {l} is {v:?}; expected factors >= 0"));
             }
         }
         Ok(())
+    }
+
+    /// The declared original lights' names, in scene order.
+    pub fn original_names(&self) -> Vec<String> {
+        let o = self.lights.iter().filter(|l| l.original);
+        o.map(|l| l.name.clone()).collect()
     }
 }
 

@@ -60,15 +60,20 @@ struct LightKeyDoc {
     intensities: BTreeMap<String, f32>,
     #[serde(default)]
     moves: BTreeMap<String, [f32; 3]>,
+    /// Per declared original light, its factor (one number or RGB; 1: as captured).
+    #[serde(default)]
+    originals: BTreeMap<String, super::json::Factor>,
 }
 
-/// One lighting keyframe: time, α_dim, intensities, light displacements.
+/// One lighting keyframe: time, α_dim, intensities, light displacements, original lights'
+/// factors.
 #[derive(Clone, Debug)]
 struct LightKey {
     time: f32,
     dim: f32,
     intensities: BTreeMap<String, f32>,
     moves: BTreeMap<String, Vec3>,
+    originals: BTreeMap<String, [f32; 3]>,
 }
 
 #[derive(Clone, Debug)]
@@ -89,12 +94,13 @@ pub struct CameraPath {
 }
 
 /// The lighting at one time: α_dim, the intensity of each named added light, and how far each
-/// moved light is from its place in the scene.
+/// moved light is from its place in the scene, and each named original light's factor.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PathLighting {
     pub dim: f32,
     pub intensities: BTreeMap<String, f32>,
     pub moves: BTreeMap<String, Vec3>,
+    pub originals: BTreeMap<String, [f32; 3]>,
 }
 
 fn catmull_rom(p0: Vec3, p1: Vec3, p2: Vec3, p3: Vec3, u: f32) -> Vec3 {
@@ -199,6 +205,14 @@ impl CameraPath {
                     )));
                 }
             }
+            for (name, c) in &l.originals {
+                if !c.rgb().iter().all(|v| v.is_finite() && *v >= 0.0) {
+                    return Err(bad(format!(
+                        "lighting[{i}]: originals.{name} = {:?}; expected factors >= 0",
+                        c.rgb()
+                    )));
+                }
+            }
             for (name, d) in &l.moves {
                 if !Vec3::from(*d).is_finite() {
                     return Err(bad(format!(
@@ -215,6 +229,7 @@ impl CameraPath {
                     .iter()
                     .map(|(k, v)| (k.clone(), Vec3::from(*v)))
                     .collect(),
+                originals: super::json::factors(&l.originals),
             });
         }
         Ok(CameraPath {
@@ -303,7 +318,15 @@ impl CameraPath {
             let y = b.moves.get(name).copied().unwrap_or(Vec3::ZERO);
             moves.insert(name.clone(), x + (y - x) * u);
         }
+        let mut originals = BTreeMap::new();
+        for name in a.originals.keys().chain(b.originals.keys()) {
+            let one = [1.0; 3];
+            let x = Vec3::from(a.originals.get(name).copied().unwrap_or(one));
+            let y = Vec3::from(b.originals.get(name).copied().unwrap_or(one));
+            originals.insert(name.clone(), (x + (y - x) * u).into());
+        }
         Some(PathLighting {
+            originals,
             dim: a.dim + (b.dim - a.dim) * u,
             intensities,
             moves,

@@ -217,6 +217,7 @@ pub fn room_lights() -> (Vec<Light>, Vec<LightingPreset>) {
         name: "lamp_on_dimmed".into(),
         dim: 0.5,
         intensities: BTreeMap::from([("lamp".to_string(), 1.0)]),
+        originals: BTreeMap::new(),
     }];
     (lights, presets)
 }

@@ -11,6 +11,11 @@ pub const KEYS: &[(&str, &str)] = &[
     ("1-9", "the scene's lighting presets"),
     ("[ ]", "dim / brighten the original lights (alpha_dim)"),
     ("Tab", "select the next added light"),
+    ("T", "select the next original light"),
+    (
+        "Z X",
+        "dim / brighten the selected original light on its own",
+    ),
     ("+ -", "selected light's intensity"),
     ("N", "add a lamp where the centre of the window looks"),
     (
@@ -83,6 +88,8 @@ pub struct HudInfo {
     pub lighting: String,
     pub alpha_dim: f32,
     pub light: Option<LightInfo>,
+    /// The selected original light and its factor (None: the scene declares none).
+    pub original: Option<(String, [f32; 3])>,
     /// Keyframes recorded so far (None: not recording).
     pub recording: Option<usize>,
     /// Playback time and the path's length (s).
@@ -116,6 +123,11 @@ impl HudInfo {
             v.push(format!(
                 "  radiance ({r:.1}, {g:.1}, {b:.1})  intensity {:.2}{live}",
                 l.intensity
+            ));
+        }
+        if let Some((name, [r, g, b])) = &self.original {
+            v.push(format!(
+                "original light {name}  factor ({r:.2}, {g:.2}, {b:.2})"
             ));
         }
         if let Some(n) = self.recording {

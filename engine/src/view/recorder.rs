@@ -28,6 +28,8 @@ pub struct Keyframe {
     pub intensities: BTreeMap<String, f32>,
     /// Centre of each added light, by name.
     pub lights: BTreeMap<String, Vec3>,
+    /// Factor of each declared original light set apart from 1, by name.
+    pub originals: BTreeMap<String, [f32; 3]>,
 }
 
 impl Keyframe {
@@ -89,7 +91,12 @@ impl PathRecorder {
                     .filter_map(|(n, p)| home.get(n).map(|h| (n, (*p - *h).into())))
                     .filter(|(_, d): &(_, [f32; 3])| d.iter().any(|v| v.abs() > 1e-6))
                     .collect();
-                json!({ "time": t, "dim": k.dim, "intensities": k.intensities, "moves": moves })
+                let mut key = json!({ "time": t, "dim": k.dim, "intensities": k.intensities,
+                                      "moves": moves });
+                if !k.originals.is_empty() {
+                    key["originals"] = json!(k.originals);
+                }
+                key
             })
             .collect();
         json!({ "interpolation": "catmull-rom", "keyframes": keys, "lighting": lighting })

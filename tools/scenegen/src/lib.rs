@@ -93,6 +93,7 @@ pub fn write_room(dir: &Path, room: &Room, proxy: &ProxyParams) -> Result<Scene>
             name: "extra0_on_dimmed".into(),
             dim: 0.5,
             intensities: BTreeMap::from([("extra0".to_string(), 1.0)]),
+            originals: BTreeMap::new(),
         });
     }
     let synthetic = Synthetic {
