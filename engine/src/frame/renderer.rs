@@ -1,0 +1,559 @@
+//! The frame's renderer: its pipelines, per-resolution buffers, push constants, and the
+//! passes of one frame recorded in order through a [`Graph`].
+
+use std::sync::Arc;
+
+use super::{
+    features, glossy, irradiance, live, output, reproject, target_mirror, view_cull, FrameBuffers,
+    FrameScene, Lighting, Mode,
+};
+use crate::bake::GpuLight;
+use crate::error::{Error, Result};
+use crate::gpu::{bytes_of, vk, Bind, Gpu, Graph, Pipeline, Timer};
+use crate::net::{Network, Storage, INPUT_CHANNELS};
+use crate::raster::GbufferPass;
+use crate::scene::{Camera, Light};
+
+/// The frame pipelines and, optionally, the network.
+pub struct Renderer {
+    pub gpu: Arc<Gpu>,
+    pub scene: FrameScene,
+    pub net: Option<Network>,
+    pub storage: Storage,
+    gbuffer: GbufferPass,
+    reproject: Pipeline,
+    irradiance: Pipeline,
+    target_mirror: Pipeline,
+    glossy_sums: Pipeline,
+    glossy: Pipeline,
+    features: Pipeline,
+    output: Pipeline,
+    view_cull: Pipeline,
+    /// The active views of the last frame, ascending.
+    active: Vec<u32>,
+    /// When frames choose their active views ([`view_cull`]) and how many.
+    pub culling: view_cull::Culling,
+    /// Buffers per resolution, the last frame's first: the viewer alternates a reduced
+    /// resolution while moving with the full one when still, so two stay allocated.
+    bufs: Vec<FrameBuffers>,
+    /// An input view left out of every pass (leave-one-out inputs for training on input
+    /// views: `relit dump` of an input camera).
+    pub exclude: Option<u32>,
+    /// Lights being placed or moved (the viewer).
+    pub live: live::LiveLights,
+    /// Skip the passes that only feed the network (target mirror, features) in the modes that
+    /// do not run it: ratio and ULR frames for the screen cost half as much. Off by default,
+    /// since `relit dump` and the tests read those passes' buffers after a ULR frame.
+    pub display_only: bool,
+    /// Fill the holes no input view sees (ratio, glossy and ULR modes) from the nearest covered
+    /// pixels (`output.glsl`'s `hole_fill`): the viewer's moving frame, which would show them
+    /// black. Off by default: renders and evaluations score holes as the mode leaves them.
+    pub fill_holes: bool,
+}
+
+/// The push constants of one frame's passes.
+struct Pushes {
+    reproject: reproject::Push,
+    irradiance: irradiance::Push,
+    target_mirror: target_mirror::Push,
+    glossy: glossy::Push,
+    features: features::Push,
+    output: output::Push,
+}
+
+/// The novel view's G-buffer, as the frame's passes name it.
+const GBUFFER: [&str; 3] = ["g_pos", "g_nrm", "g_tri"];
+
+/// Near and far planes of the novel view's G-buffer (m): the input views'.
+pub use crate::bake::views::{FAR, NEAR};
+
+impl Renderer {
+    pub fn new(
+        gpu: &Arc<Gpu>,
+        scene: FrameScene,
+        net: Option<Network>,
+        storage: Storage,
+    ) -> Result<Renderer> {
+        if let Some(n) = &net {
+            if n.kernels.storage != storage {
+                return Err(Error::Other(
+                    "the network's storage type differs from the renderer's".into(),
+                ));
+            }
+            if n.config.in_channels != INPUT_CHANNELS || n.config.out_channels != 6 {
+                return Err(Error::Other(format!(
+                    "the network takes {} channels and returns {}; the frame needs {} in, 6 out",
+                    n.config.in_channels, n.config.out_channels, INPUT_CHANNELS
+                )));
+            }
+        }
+        let (feat, out) = match storage {
+            Storage::F16 => (features::SHADER_F16, output::SHADER_F16),
+            Storage::F32 => (features::SHADER_F32, output::SHADER_F32),
+        };
+        let live = live::LiveLights::new(gpu, &scene.geom, scene.albedo.as_deref())?;
+        Ok(Renderer {
+            live,
+            gbuffer: GbufferPass::new(gpu)?,
+            reproject: Pipeline::compute(gpu, reproject::SHADER)?,
+            irradiance: Pipeline::compute(gpu, irradiance::SHADER)?,
+            target_mirror: Pipeline::compute(gpu, target_mirror::SHADER)?,
+            glossy_sums: Pipeline::compute(gpu, glossy::SUMS_SHADER)?,
+            glossy: Pipeline::compute(gpu, glossy::SHADER)?,
+            features: Pipeline::compute(gpu, feat)?,
+            output: Pipeline::compute(gpu, out)?,
+            view_cull: Pipeline::compute(gpu, view_cull::SHADER)?,
+            active: Vec::new(),
+            culling: view_cull::Culling::default(),
+            gpu: gpu.clone(),
+            scene,
+            net,
+            storage,
+            bufs: Vec::new(),
+            exclude: None,
+            display_only: false,
+            fill_holes: false,
+        })
+    }
+
+    /// At most this many resolutions keep their buffers.
+    const RESOLUTIONS: usize = 2;
+
+    fn buffers(&mut self, width: u32, height: u32) -> Result<&FrameBuffers> {
+        match (self.bufs.iter()).position(|b| (b.width, b.height) == (width, height)) {
+            Some(i) => {
+                let b = self.bufs.remove(i);
+                self.bufs.insert(0, b);
+            }
+            None => {
+                self.bufs.truncate(Self::RESOLUTIONS - 1);
+                let b = self.new_buffers(width, height)?;
+                self.bufs.insert(0, b);
+            }
+        }
+        Ok(&self.bufs[0])
+    }
+
+    fn new_buffers(&self, width: u32, height: u32) -> Result<FrameBuffers> {
+        let net = self.net.as_ref();
+        FrameBuffers::new(&self.gpu, &self.scene, (net, self.storage), width, height)
+    }
+
+    /// Places added light `layer` (a new one when `layer` is the count of added lights) at
+    /// `light` and makes it live: drawn there and lit from the next frame, its surface cache
+    /// refined by [`Renderer::refine_live`]. A new light needs one more intensity in the
+    /// `Lighting` passed to `render`.
+    pub fn set_live_light(&mut self, layer: usize, light: &Light) -> Result<()> {
+        let before = self.scene.lights.len();
+        self.live.set(layer, &GpuLight::new(light))?;
+        self.scene.set_emitter(layer, light)?;
+        if self.scene.lights.len() != before {
+            // The intensity buffer holds one float per added light.
+            self.bufs.clear();
+        }
+        Ok(())
+    }
+
+    /// As [`Renderer::set_live_light`] with a finished surface cache (no refinement).
+    pub fn set_live_light_cached(
+        &mut self,
+        layer: usize,
+        light: &Light,
+        cache: Vec<[f32; 4]>,
+    ) -> Result<()> {
+        self.live
+            .set_converged(layer, &GpuLight::new(light), cache)?;
+        self.scene.set_emitter(layer, light)
+    }
+
+    /// Added light `layer` reads its baked maps again, drawn at `light` (its baked place).
+    pub fn unset_live_light(&mut self, layer: usize, light: &Light) -> Result<()> {
+        if self.live.is_live(layer) {
+            self.live.unset(layer)?;
+            self.scene.set_emitter(layer, light)?;
+        }
+        Ok(())
+    }
+
+    /// One refinement step of the live lights' caches; whether anything changed.
+    pub fn refine_live(&mut self) -> Result<bool> {
+        // The texels the last frame shows converge first: what the user looks at.
+        let focus = match self.bufs.first() {
+            Some(b) if self.live.count() > 0 => {
+                let tri: Vec<u32> =
+                    bytemuck::pod_collect_to_vec(&b.gbuf.tri.download(vk::ImageLayout::GENERAL)?);
+                Some(self.live.texels_shown(&tri))
+            }
+            _ => None,
+        };
+        self.live.refine(&self.scene.mesh, focus.as_deref())
+    }
+
+    /// Renders `cam` under `lighting` and waits; read the results with [`Renderer::buffers_ref`].
+    /// With a timer: one span per pass.
+    pub fn render(
+        &mut self,
+        cam: &Camera,
+        lighting: &Lighting,
+        mode: Mode,
+        exposure: f32,
+        mut timer: Option<&mut Timer>,
+    ) -> Result<()> {
+        self.check_frame(lighting, mode)?;
+        self.buffers(cam.width, cam.height)?;
+        let culled = self.cull_views(cam, timer.as_deref_mut())?;
+        let b = &self.bufs[0];
+        b.active.upload(bytemuck::cast_slice(&self.active))?;
+        let mut ints = lighting.intensities.clone();
+        ints.resize(self.scene.lights.len().max(1), 0.0);
+        b.intensity.upload(bytemuck::cast_slice(&ints))?;
+        let keep = lighting.keep_buffer(self.scene.originals.len());
+        b.keep.upload(bytemuck::cast_slice(&keep))?;
+        let push = self.pushes(cam, lighting, mode, exposure);
+        let threads = (cam.width * cam.height, 1, 1);
+        // The passes that only feed the network (see `display_only`).
+        let inputs = mode.needs_network() || !self.display_only;
+        let gpu = self.gpu.clone();
+        let res = gpu.submit(|cmd| -> Result<()> {
+            let mut g = Graph::new(&gpu, cmd, timer);
+            self.resources(&mut g, b);
+            if culled {
+                g.written_before(&GBUFFER)?;
+            } else {
+                self.record_gbuffer(&mut g, b, cam)?;
+            }
+            g.dispatch(
+                "reproject",
+                &self.reproject,
+                bytes_of(&push.reproject),
+                threads,
+            )?;
+            g.dispatch(
+                "irradiance",
+                &self.irradiance,
+                bytes_of(&push.irradiance),
+                threads,
+            )?;
+            if inputs {
+                let mirror = bytes_of(&push.target_mirror);
+                g.dispatch("target mirror", &self.target_mirror, mirror, threads)?;
+            }
+            if self.runs_glossy(mode) {
+                let gl = bytes_of(&push.glossy);
+                g.dispatch("glossy sums", &self.glossy_sums, gl, threads)?;
+                g.dispatch("glossy layer", &self.glossy, gl, threads)?;
+            }
+            if inputs {
+                g.dispatch(
+                    "features",
+                    &self.features,
+                    bytes_of(&push.features),
+                    threads,
+                )?;
+            }
+            if mode.needs_network() {
+                let (net, nb) = (self.net.as_ref().unwrap(), b.net.as_ref().unwrap());
+                g.external(None, &["NetIn"], &["NetOut"], |cmd, timer| {
+                    net.record(cmd, nb, &b.input, timer)
+                })?;
+            }
+            g.dispatch("output", &self.output, bytes_of(&push.output), threads)
+        })?;
+        res
+    }
+
+    /// Whether a frame in `mode` runs the view-dependent layer: glossy mode, and the network
+    /// modes of a network whose base is glossy mode's image.
+    pub fn runs_glossy(&self, mode: Mode) -> bool {
+        let base = self.net.as_ref().map(|n| n.config.base);
+        mode.needs_glossy() || (mode.needs_network() && base == Some(crate::net::NetBase::Glossy))
+    }
+
+    /// The viewer's cheap frame while anything moves, for the chosen `mode`: ULR and ratio as
+    /// they are; glossy mode for glossy mode and for a network whose base is glossy mode's
+    /// image (its highlights then move with the walk and a dragged lamp); ratio otherwise, as
+    /// the image the network corrects.
+    pub fn moving_mode(&self, mode: Mode) -> Mode {
+        match mode {
+            Mode::Ulr | Mode::Ratio | Mode::Glossy => mode,
+            _ if self.runs_glossy(mode) => Mode::Glossy,
+            _ => Mode::Ratio,
+        }
+    }
+
+    /// What a frame needs before anything is recorded: weights for a network mode, one
+    /// intensity per added light, and every lit light baked (or live).
+    fn check_frame(&self, lighting: &Lighting, mode: Mode) -> Result<()> {
+        if mode.needs_network() && self.net.is_none() {
+            return Err(Error::Other(format!(
+                "{mode:?} mode needs weights (--weights FILE.safetensors); use --mode ratio or ulr"
+            )));
+        }
+        if lighting.intensities.len() != self.scene.lights.len() {
+            return Err(Error::Other(format!(
+                "lighting has {} intensities; the scene has {} added lights",
+                lighting.intensities.len(),
+                self.scene.lights.len()
+            )));
+        }
+        if let Some(name) = (self.scene.lights.iter().enumerate()).find_map(|(i, n)| {
+            let lit = lighting.intensities[i] != 0.0 && !self.live.is_live(i);
+            (lit && self.scene.unbaked.contains(n)).then_some(n)
+        }) {
+            return Err(Error::Other(format!(
+                "added light \"{name}\" is lit but not baked: bake it first (`relit bake SCENE --lights {name}`)"
+            )));
+        }
+        let norig = self.scene.originals.len();
+        if lighting.originals.len() > norig {
+            return Err(Error::Other(format!(
+                "lighting has {} original-light factors; the scene declares {norig} original lights",
+                lighting.originals.len()
+            )));
+        }
+        if lighting.per_light() && norig >= 2 && self.scene.split == 0 {
+            return Err(Error::Other(
+                "a factor for one original light needs their entries in the bake: run `relit bake` again".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The push constants of the frame's passes for `cam` (after `cull_views` chose the views).
+    fn pushes(&self, cam: &Camera, lighting: &Lighting, mode: Mode, exposure: f32) -> Pushes {
+        let s = &self.scene;
+        let c = cam.center();
+        let eye = [c.x, c.y, c.z, 1.0];
+        let (width, height) = (cam.width, cam.height);
+        let (view_w, view_h, nviews) = (s.views.width, s.views.height, s.views.count);
+        let (nlights, norig) = (s.lights.len() as u32, s.originals.len() as u32);
+        let (nlive, live_mask) = (self.live.count(), self.live.mask());
+        let (alpha_dim, nactive) = (lighting.alpha_dim, self.active.len() as u32);
+        let (nsplit, split_layer) = (s.split, s.split_layer);
+        let per_light = lighting.per_light() as u32;
+        Pushes {
+            reproject: reproject::Push {
+                eye,
+                width,
+                height,
+                nactive,
+                view_w,
+                view_h,
+            },
+            irradiance: irradiance::Push {
+                eye,
+                width,
+                height,
+                nactive,
+                view_w,
+                view_h,
+                nviews,
+                nlights,
+                alpha_dim,
+                nlive,
+                live_mask,
+                norig,
+                nsplit,
+                split_layer,
+                per_light,
+            },
+            target_mirror: target_mirror::Push {
+                eye,
+                width,
+                height,
+                view_w,
+                view_h,
+                nviews,
+                nlights,
+                alpha_dim,
+                exclude: self.exclude.unwrap_or(u32::MAX),
+                nlive,
+                live_mask,
+                norig,
+                nsplit,
+                split_layer,
+                per_light,
+            },
+            glossy: glossy::Push {
+                eye,
+                width,
+                height,
+                nactive,
+                view_w,
+                view_h,
+                nlights,
+                norig,
+                alpha_dim,
+                per_light,
+            },
+            features: features::Push { eye, width, height },
+            output: output::Push {
+                width,
+                height,
+                mode: match mode {
+                    Mode::Network => 0,
+                    Mode::Ulr => 1,
+                    Mode::Ratio => 2,
+                    Mode::RatioFilled => 3,
+                    Mode::Glossy => 4,
+                },
+                exposure,
+                cam: cam.to_gpu(NEAR, FAR),
+                nlights,
+                base: match self.net.as_ref().map(|n| n.config.base) {
+                    Some(crate::net::NetBase::Ratio) => 1,
+                    Some(crate::net::NetBase::Glossy) => 2,
+                    _ => 0,
+                },
+                shrink: self.net.as_ref().map_or(0.0, |n| n.config.shrink),
+                gate: self.net.as_ref().map_or(0.0, |n| n.config.gate),
+                gain: self.net.as_ref().is_some_and(|n| n.config.gain) as u32,
+                agree: self.net.as_ref().map_or(0.0, |n| n.config.agree),
+                norig,
+                alpha_dim,
+                fill: self.fill_holes as u32,
+            },
+        }
+    }
+
+    /// Chooses the frame's active views (`self.active`). With more views than `culling.above`
+    /// this renders the G-buffer and the view culling pass in a submission of their own and
+    /// reads the pass back (returns true: the G-buffer is done).
+    fn cull_views(&mut self, cam: &Camera, timer: Option<&mut Timer>) -> Result<bool> {
+        let n = self.scene.data.cameras.len();
+        if !self.culling.needed(n, self.exclude) {
+            self.active = (0..n as u32).filter(|&i| Some(i) != self.exclude).collect();
+            return Ok(false);
+        }
+        let (seen, points) = self.view_visibility(cam, timer)?;
+        let cameras = &self.scene.data.cameras;
+        self.active = view_cull::choose(
+            &self.culling,
+            &seen,
+            &points,
+            cameras,
+            cam.center(),
+            self.exclude,
+        );
+        Ok(true)
+    }
+
+    /// Renders `cam`'s G-buffer and the view culling pass; returns its visibility bits and grid
+    /// points (as [`view_cull::reference`]). Call after `buffers` for `cam`'s size.
+    pub fn view_visibility(
+        &self,
+        cam: &Camera,
+        timer: Option<&mut Timer>,
+    ) -> Result<(Vec<u32>, Vec<[f32; 4]>)> {
+        let b = self.last()?;
+        let n = self.scene.data.cameras.len();
+        let grid = view_cull::grid(cam.width, cam.height);
+        let nw = view_cull::words(grid) as u32;
+        let push = view_cull::Push {
+            eye: cam.center().extend(1.0).into(),
+            width: cam.width,
+            height: cam.height,
+            grid_w: grid.0,
+            grid_h: grid.1,
+            nviews: n as u32,
+            view_w: self.scene.views.width,
+            view_h: self.scene.views.height,
+            words: nw,
+        };
+        let gpu = self.gpu.clone();
+        gpu.submit(|cmd| -> Result<()> {
+            let mut g = Graph::new(&gpu, cmd, timer);
+            self.resources(&mut g, b);
+            self.record_gbuffer(&mut g, b, cam)?;
+            let threads = (nw * n as u32, 1, 1);
+            g.dispatch("view culling", &self.view_cull, bytes_of(&push), threads)
+        })??;
+        let mut seen: Vec<u32> = bytemuck::pod_collect_to_vec(&b.cull_seen.download()?);
+        let mut points: Vec<[f32; 4]> = b.cull_points.download_vec()?;
+        seen.truncate(nw as usize * n);
+        points.truncate((grid.0 * grid.1) as usize);
+        Ok((seen, points))
+    }
+
+    fn record_gbuffer<'a>(
+        &'a self,
+        g: &mut Graph<'a, '_>,
+        b: &'a FrameBuffers,
+        cam: &Camera,
+    ) -> Result<()> {
+        let mesh = &self.scene.mesh;
+        g.external(Some("g-buffer"), &[], &GBUFFER, |cmd, _| {
+            self.gbuffer.record(cmd, mesh, cam, NEAR, FAR, &b.gbuf)
+        })
+    }
+
+    /// The active views of the last frame, ascending (what its composites read).
+    pub fn active_views(&self) -> &[u32] {
+        &self.active
+    }
+
+    /// The frame's resources by the names its shaders give them.
+    fn resources<'a>(&'a self, g: &mut Graph<'a, '_>, b: &'a FrameBuffers) {
+        let s = &self.scene;
+        let sm = s.sampler.raw;
+        let net_out = b.net.as_ref().map(|n| &n.out).unwrap_or(&b.dummy_net_out);
+        let (live_caches, live_corners, live_lights) = self.live.buffers();
+        let (name, views) = s.views.bind();
+        g.set(name, views)
+            .set("g_pos", Bind::StorageImage(b.gbuf.pos_depth.view))
+            .set("g_nrm", Bind::StorageImage(b.gbuf.normal.view))
+            .set("g_tri", Bind::StorageImage(b.gbuf.tri.view))
+            .set("Active", Bind::Buffer(&b.active))
+            .set("CullSeen", Bind::Buffer(&b.cull_seen))
+            .set("CullPoints", Bind::Buffer(&b.cull_points))
+            .set("tex_img", Bind::Sampled(s.maps.img.view, sm))
+            .set("tex_msrc", Bind::Sampled(s.maps.msrc.view, sm))
+            .set("tex_esrc", Bind::Sampled(s.maps.esrc.view, sm))
+            .set("tex_eadd", Bind::Sampled(s.maps.eadd.view, sm))
+            .set("Intensity", Bind::Buffer(&b.intensity))
+            .set("Keep", Bind::Buffer(&b.keep))
+            .set("tlas", Bind::Accel(s.mesh.tlas.raw))
+            .set("Comp", Bind::Buffer(&b.comp))
+            .set("Irr", Bind::Buffer(&b.irr))
+            .set("Mirror", Bind::Buffer(&b.mirror))
+            .set("Glossy", Bind::Buffer(&b.glossy))
+            .set("GlossySums", Bind::Buffer(&b.glossy_sums))
+            .set("NetIn", Bind::Buffer(&b.input.buf))
+            .set("NetOut", Bind::Buffer(&net_out.buf))
+            .set("Hdr", Bind::Buffer(&b.hdr))
+            .set("Ldr", Bind::Buffer(&b.ldr))
+            .set("Emitters", Bind::Buffer(&s.emitter_buf))
+            .set("Originals", Bind::Buffer(&s.original_buf))
+            .set("LiveVerts", Bind::Buffer(&s.mesh.positions))
+            .set("LiveIndices", Bind::Buffer(&s.mesh.indices))
+            .set("LiveCaches", Bind::Buffer(live_caches))
+            .set("LiveCorners", Bind::Buffer(live_corners))
+            .set("Lives", Bind::Buffer(live_lights));
+    }
+
+    /// The buffers of the last [`Renderer::render`] (composites: [`FrameBuffers::composites`]).
+    pub fn buffers_ref(&self) -> Option<&FrameBuffers> {
+        self.bufs.first()
+    }
+
+    /// Linear RGB of the last frame.
+    pub fn hdr(&self) -> Result<Vec<[f32; 4]>> {
+        let b = self.last()?;
+        let mut v: Vec<[f32; 4]> = b.hdr.download_vec()?;
+        v.truncate((b.width * b.height) as usize);
+        Ok(v)
+    }
+
+    /// Display RGBA8 of the last frame.
+    pub fn ldr(&self) -> Result<Vec<u8>> {
+        let b = self.last()?;
+        let n = (b.width * b.height * 4) as u64;
+        b.ldr.download_range(0, n)
+    }
+
+    fn last(&self) -> Result<&FrameBuffers> {
+        self.bufs
+            .first()
+            .ok_or_else(|| Error::Other("no frame rendered yet".into()))
+    }
+}
