@@ -340,15 +340,114 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         rng.range(2.45, 2.9),
         rng.range(3.2, 4.8),
     );
-    let (hx, hz) = (size.x / 2.0, size.z / 2.0);
+    let r = Bounds::of(size);
     let mut b = Builder {
         rng: &mut rng,
         objects: vec![],
         materials: BTreeMap::new(),
         taken: vec![],
     };
+    // Each part draws from the room's one stream, in this order.
+    shell(&mut b, &r, size);
+    let door_x = doorway(&mut b, &r);
+    let m = stock(&mut b);
+    table(&mut b, &r, &m);
+    sofa_or_bed(&mut b, &r, &m);
+    shelf(&mut b, &r, &m);
+    tv(&mut b, &r, &m);
+    cylinders(&mut b, &r, &m);
+    posters(&mut b, &r);
+    if o.finishes != Finishes::Classic {
+        // A stream of its own, so that the rest of the room is the classic one of this seed.
+        let mut own = Rng::new(seed ^ 0xF141_54E5);
+        std::mem::swap(b.rng, &mut own);
+        vary(&mut b, size, door_x);
+        std::mem::swap(b.rng, &mut own);
+    }
+    match o.finishes {
+        Finishes::Sparse => sparsify(&mut b.objects, &mut b.materials),
+        Finishes::Matte => matten(&mut b.objects, &mut b.materials),
+        Finishes::Classic | Finishes::Varied => {}
+    }
 
-    // Shell: floor, ceiling, walls as separate inward quads so each has its own material.
+    let Builder {
+        objects,
+        materials,
+        taken,
+        ..
+    } = b;
+
+    let (lights, conditions) = lights(&mut rng, seed, o, &r, size);
+    let inside = |p: Vec2| {
+        taken.iter().all(|(a, b)| {
+            p.x < a.x - 0.25 || p.x > b.x + 0.25 || p.y < a.y - 0.25 || p.y > b.y + 0.25
+        })
+    };
+    let cameras = capture_cameras(
+        &mut rng,
+        (seed, o),
+        (&objects, &lights),
+        (&r, size),
+        &inside,
+    );
+    let (path, path_fov_deg, test_cameras) = test_path(o, size, &inside);
+    Room {
+        seed,
+        size,
+        objects,
+        materials,
+        lights,
+        conditions,
+        cameras,
+        path,
+        path_fov_deg,
+        test_cameras,
+    }
+}
+
+/// The room's floor rectangle and height (m): x in [x0, x1], z in [z0, z1], y in [0, h].
+#[derive(Clone, Copy)]
+struct Bounds {
+    x0: f32,
+    x1: f32,
+    z0: f32,
+    z1: f32,
+    h: f32,
+}
+
+impl Bounds {
+    fn of(size: Vec3) -> Bounds {
+        let (hx, hz) = (size.x / 2.0, size.z / 2.0);
+        Bounds {
+            x0: -hx,
+            x1: hx,
+            z0: -hz,
+            z1: hz,
+            h: size.y,
+        }
+    }
+
+    /// The floor 5 cm in from the walls.
+    fn inner(&self) -> (Vec2, Vec2) {
+        (
+            Vec2::new(self.x0 + 0.05, self.z0 + 0.05),
+            Vec2::new(self.x1 - 0.05, self.z1 - 0.05),
+        )
+    }
+}
+
+/// The names of the materials the furniture shares.
+struct Stock {
+    tabletop: String,
+    metal: String,
+    fabric: String,
+    tv: String,
+    shelf: String,
+}
+
+/// Shell: floor, ceiling, walls as separate inward quads so each has its own material.
+fn shell(b: &mut Builder, r: &Bounds, size: Vec3) {
+    let Bounds { x0, x1, z0, z1, h } = *r;
     let wall_c = Vec3::new(
         b.rng.range(0.45, 0.85),
         b.rng.range(0.45, 0.85),
@@ -384,7 +483,6 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         0.0,
         Vec3::ZERO,
     );
-    let (x0, x1, z0, z1, h) = (-hx, hx, -hz, hz, size.y);
     let shell = [
         (
             "floor",
@@ -456,7 +554,11 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             shell: true,
         });
     }
-    // An opening: a doorway niche in the north wall (a recess 0.5 m deep, its own dark walls).
+}
+
+/// An opening: a doorway niche in the north wall (a recess 0.5 m deep, its own dark walls); returns its left edge (x).
+fn doorway(b: &mut Builder, r: &Bounds) -> f32 {
+    let Bounds { x0, x1, z0, .. } = *r;
     let door_x = b.rng.range(x0 + 0.4, x1 - 1.4);
     let dark = b.material("niche", "diffuse", Vec3::splat(0.25), None, 0.0, Vec3::ZERO);
     b.objects.push(Object {
@@ -475,9 +577,11 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         Vec2::new(door_x - 0.2, z0),
         Vec2::new(door_x + 1.15, z0 + 0.9),
     ));
+    door_x
+}
 
-    let inner_lo = Vec2::new(x0 + 0.05, z0 + 0.05);
-    let inner_hi = Vec2::new(x1 - 0.05, z1 - 0.05);
+/// The materials the furniture shares (in this order: each draws from the room's stream).
+fn stock(b: &mut Builder) -> Stock {
     let wood_c = Vec3::new(0.5, 0.32, 0.18) * b.rng.range(0.6, 1.3);
     let top_r = b.rng.range(0.02, 0.3);
     let tabletop = b.material(
@@ -510,8 +614,24 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
     let tv = b.material("tv", "plastic", Vec3::splat(0.02), None, tv_r, Vec3::ZERO);
     let shelf_c = v3(b.rng, 0.3, 0.8);
     let shelf = b.material("shelf", "diffuse", shelf_c, None, 0.0, Vec3::ZERO);
+    Stock {
+        tabletop,
+        metal,
+        fabric,
+        tv,
+        shelf,
+    }
+}
 
-    // A table with 4 cm legs (metal or wood) in the middle region.
+/// A table with 4 cm legs (metal or wood) in the middle region, and a chair beside it.
+fn table(b: &mut Builder, r: &Bounds, m: &Stock) {
+    let (inner_lo, inner_hi) = r.inner();
+    let Stock {
+        tabletop,
+        metal,
+        fabric,
+        ..
+    } = m;
     if let Some(p) = b.place(
         inner_lo + Vec2::splat(0.6),
         inner_hi - Vec2::splat(0.6),
@@ -525,7 +645,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                 Vec3::new(p.x, th - 0.04, p.y),
                 Vec3::new(p.x + 1.2, th, p.y + 0.75),
             ),
-            &tabletop,
+            tabletop,
             Surface::Glossy,
         );
         let leg_m = if b.rng.f32() < 0.5 {
@@ -555,7 +675,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                     Vec3::new(c.x, 0.43, c.y),
                     Vec3::new(c.x + 0.45, 0.47, c.y + 0.45),
                 ),
-                &fabric,
+                fabric,
                 Surface::Textured,
             );
             b.add(
@@ -564,7 +684,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                     Vec3::new(c.x, 0.47, c.y + 0.41),
                     Vec3::new(c.x + 0.45, 0.9, c.y + 0.45),
                 ),
-                &fabric,
+                fabric,
                 Surface::Textured,
             );
             for (i, (dx, dz)) in [(0.0, 0.0), (0.435, 0.0), (0.0, 0.435), (0.435, 0.435)]
@@ -575,13 +695,20 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                 b.add(
                     &format!("chair_leg{i}"),
                     boxp(lo, lo + Vec3::new(0.015, 0.43, 0.015)),
-                    &metal,
+                    metal,
                     Surface::Glossy,
                 );
             }
         }
     }
-    // A sofa or a bed block against the south wall.
+}
+
+/// A sofa or a bed block against the south wall.
+fn sofa_or_bed(b: &mut Builder, r: &Bounds, m: &Stock) {
+    let Bounds { x0, x1, z1, .. } = *r;
+    let Stock {
+        tabletop, fabric, ..
+    } = m;
     if b.rng.f32() < 0.5 {
         if let Some(p) = b.place(
             Vec2::new(x0 + 0.1, z1 - 1.0),
@@ -595,7 +722,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                     Vec3::new(p.x, 0.0, p.y),
                     Vec3::new(p.x + 2.0, 0.45, p.y + 0.9),
                 ),
-                &fabric,
+                fabric,
                 Surface::Textured,
             );
             b.add(
@@ -604,7 +731,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                     Vec3::new(p.x, 0.45, p.y + 0.7),
                     Vec3::new(p.x + 2.0, 0.85, p.y + 0.9),
                 ),
-                &fabric,
+                fabric,
                 Surface::Textured,
             );
             b.add(
@@ -613,7 +740,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                     Vec3::new(p.x, 0.45, p.y),
                     Vec3::new(p.x + 0.2, 0.65, p.y + 0.7),
                 ),
-                &fabric,
+                fabric,
                 Surface::Textured,
             );
             b.add(
@@ -622,7 +749,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                     Vec3::new(p.x + 1.8, 0.45, p.y),
                     Vec3::new(p.x + 2.0, 0.65, p.y + 0.7),
                 ),
-                &fabric,
+                fabric,
                 Surface::Textured,
             );
         }
@@ -647,7 +774,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                 Vec3::new(p.x, 0.0, p.y),
                 Vec3::new(p.x + 1.5, 0.3, p.y + 2.0),
             ),
-            &tabletop,
+            tabletop,
             Surface::Glossy,
         );
         b.add(
@@ -665,11 +792,16 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                 Vec3::new(p.x, 0.0, p.y + 1.98),
                 Vec3::new(p.x + 1.5, 1.0, p.y + 2.05),
             ),
-            &tabletop,
+            tabletop,
             Surface::Glossy,
         );
     }
-    // A shelf against the east wall with 1.8 cm boards (thin: lost by MVS).
+}
+
+/// A shelf against the east wall with 1.8 cm boards (thin: lost by MVS).
+fn shelf(b: &mut Builder, r: &Bounds, m: &Stock) {
+    let Bounds { x1, z0, z1, .. } = *r;
+    let shelf = &m.shelf;
     if let Some(p) = b.place(
         Vec2::new(x1 - 0.4, z0 + 0.2),
         Vec2::new(x1 - 0.01, z1 - 0.2),
@@ -683,13 +815,13 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         b.add(
             "shelf_side0",
             boxp(lo, Vec3::new(hi.x, hi.y, lo.z + 0.04)),
-            &shelf,
+            shelf,
             Surface::Textured,
         );
         b.add(
             "shelf_side1",
             boxp(Vec3::new(lo.x, 0.0, hi.z - 0.04), hi),
-            &shelf,
+            shelf,
             Surface::Textured,
         );
         for i in 0..4 {
@@ -700,7 +832,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                     Vec3::new(lo.x, y, lo.z + 0.04),
                     Vec3::new(hi.x, y + 0.018, hi.z - 0.04),
                 ),
-                &shelf,
+                shelf,
                 Surface::Textured,
             );
             // Boxes on the shelves give texture and occluders.
@@ -719,7 +851,17 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             );
         }
     }
-    // A TV (4 cm panel, glossy) on a low cabinet along the west wall.
+}
+
+/// A TV (4 cm panel, glossy) on a low cabinet along the west wall.
+fn tv(b: &mut Builder, r: &Bounds, m: &Stock) {
+    let Bounds { x0, z0, z1, .. } = *r;
+    let Stock {
+        tabletop,
+        metal,
+        tv,
+        ..
+    } = m;
     if let Some(p) = b.place(
         Vec2::new(x0 + 0.01, z0 + 0.3),
         Vec2::new(x0 + 0.5, z1 - 0.3),
@@ -732,7 +874,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                 Vec3::new(p.x, 0.0, p.y),
                 Vec3::new(p.x + 0.45, 0.5, p.y + 1.4),
             ),
-            &tabletop,
+            tabletop,
             Surface::Glossy,
         );
         b.add(
@@ -741,7 +883,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                 Vec3::new(p.x + 0.15, 0.6, p.y + 0.1),
                 Vec3::new(p.x + 0.19, 1.3, p.y + 1.3),
             ),
-            &tv,
+            tv,
             Surface::Glossy,
         );
         b.add(
@@ -750,11 +892,16 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
                 Vec3::new(p.x + 0.12, 0.5, p.y + 0.6),
                 Vec3::new(p.x + 0.22, 0.6, p.y + 0.8),
             ),
-            &metal,
+            metal,
             Surface::Glossy,
         );
     }
-    // Cylinders: a stool or vase and a floor-lamp stand.
+}
+
+/// Cylinders: a stool or vase and a floor-lamp stand.
+fn cylinders(b: &mut Builder, r: &Bounds, m: &Stock) {
+    let (inner_lo, inner_hi) = r.inner();
+    let Stock { metal, fabric, .. } = m;
     for i in 0..2 {
         let r = b.rng.range(0.12, 0.25);
         if let Some(p) = b.place(
@@ -781,7 +928,11 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             );
         }
     }
-    // Posters: 1 cm thick prints on the walls (thin: they merge into the wall in the proxy).
+}
+
+/// Posters: 1 cm thick prints on the walls (thin: they merge into the wall in the proxy).
+fn posters(b: &mut Builder, r: &Bounds) {
+    let Bounds { x0, x1, z0, z1, .. } = *r;
     for i in 0..2 {
         let name = format!("poster{i}");
         let base = v3(b.rng, 0.2, 0.9);
@@ -804,27 +955,17 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         };
         b.add(&name, prim, &m, Surface::Textured);
     }
-    if o.finishes != Finishes::Classic {
-        // A stream of its own, so that the rest of the room is the classic one of this seed.
-        let mut own = Rng::new(seed ^ 0xF141_54E5);
-        std::mem::swap(b.rng, &mut own);
-        vary(&mut b, size, door_x);
-        std::mem::swap(b.rng, &mut own);
-    }
-    match o.finishes {
-        Finishes::Sparse => sparsify(&mut b.objects, &mut b.materials),
-        Finishes::Matte => matten(&mut b.objects, &mut b.materials),
-        Finishes::Classic | Finishes::Varied => {}
-    }
+}
 
-    let Builder {
-        objects,
-        materials,
-        taken,
-        ..
-    } = b;
-
-    // Original lighting: ceiling panel(s) and sometimes a window-like emitter on a wall.
+/// The original lighting (ceiling panel(s) and sometimes a window-like emitter on a wall) and the extra lights, each a condition of its own; returns the lights and the conditions.
+fn lights(
+    rng: &mut Rng,
+    seed: u64,
+    o: &RoomOptions,
+    r: &Bounds,
+    size: Vec3,
+) -> (Vec<Light>, Vec<(String, Vec<String>)>) {
+    let Bounds { x0, x1, z0, z1, h } = *r;
     let mut lights = Vec::new();
     let panels = if rng.f32() < 0.5 { 1 } else { 2 };
     for i in 0..panels {
@@ -930,13 +1071,18 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
     for l in lights.iter().filter(|l| !l.original) {
         conditions.push((l.name.clone(), vec![l.name.clone()]));
     }
+    (lights, conditions)
+}
 
-    // Capture cameras: a handheld walk around the room, looking at content.
-    let inside = |p: Vec2| {
-        taken.iter().all(|(a, b)| {
-            p.x < a.x - 0.25 || p.x > b.x + 0.25 || p.y < a.y - 0.25 || p.y > b.y + 0.25
-        })
-    };
+/// Capture cameras: a handheld walk around the room, looking at content.
+fn capture_cameras(
+    rng: &mut Rng,
+    (seed, o): (u64, &RoomOptions),
+    (objects, lights): (&[Object], &[Light]),
+    (r, size): (&Bounds, Vec3),
+    inside: &dyn Fn(Vec2) -> bool,
+) -> Vec<Camera> {
+    let Bounds { x0, x1, z0, z1, .. } = *r;
     let content: Vec<Vec3> = objects
         .iter()
         .filter(|o| !o.shell)
@@ -946,7 +1092,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             Vec3::new(c.x, 0.7, c.y)
         })
         .collect();
-    let mut cameras = light_cameras(seed, o, &objects, &lights, size, &inside);
+    let mut cameras = light_cameras(seed, o, objects, lights, size, &inside);
     let mut tries = 0;
     while cameras.len() < o.views && tries < 10_000 {
         tries += 1;
@@ -959,7 +1105,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         }
         let pos = Vec3::new(p.x, rng.range(1.2, 1.8), p.y);
         let t = if !content.is_empty() && rng.f32() < 0.7 {
-            content[(rng.next_u64() % content.len() as u64) as usize] + v3(&mut rng, -0.4, 0.4)
+            content[(rng.next_u64() % content.len() as u64) as usize] + v3(rng, -0.4, 0.4)
         } else {
             Vec3::new(rng.range(x0, x1), rng.range(0.3, 1.5), rng.range(z0, z1))
         };
@@ -969,8 +1115,16 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
         let fx = o.width as f32 * rng.range(0.5, 0.75);
         cameras.push(Camera::look_at(pos, t, Vec3::Y, o.width, o.height, fx));
     }
+    cameras
+}
 
-    // Test path: a loop through free space, looking towards the room's middle.
+/// Test path: a loop through free space, looking towards the room's middle; its keyframes, field of view and the test cameras along it.
+fn test_path(
+    o: &RoomOptions,
+    size: Vec3,
+    inside: &dyn Fn(Vec2) -> bool,
+) -> (Vec<(f32, Vec3, Vec3)>, f32, Vec<Camera>) {
+    let (hx, hz) = (size.x / 2.0, size.z / 2.0);
     let mut path = Vec::new();
     let n_keys = 6;
     for k in 0..=n_keys {
@@ -995,19 +1149,7 @@ pub fn generate(seed: u64, o: &RoomOptions) -> Room {
             Camera::look_at(pos, look, Vec3::Y, o.width, o.height, fx)
         })
         .collect();
-
-    Room {
-        seed,
-        size,
-        objects,
-        materials,
-        lights,
-        conditions,
-        cameras,
-        path,
-        path_fov_deg,
-        test_cameras,
-    }
+    (path, path_fov_deg, test_cameras)
 }
 
 /// Capture cameras aimed at the original lights, `o.light_views` per light taken in turn (at most
