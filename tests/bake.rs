@@ -1307,9 +1307,7 @@ fn bake_covers_the_lights_in_use_and_others_are_baked_when_first_lit() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    // The original lights' entries (per-light control) are in every bake.
-    let originals = original_entries(&d);
-    assert_eq!(entries().len(), 1 + originals, "{:?}", entries());
+    assert_eq!(entries().len(), 1, "{:?}", entries());
     // A preset that lights extra1: rendering it bakes extra1's entry first, then renders.
     let path = d.join("scene.json");
     let mut doc: serde_json::Value =
@@ -1332,16 +1330,39 @@ fn bake_covers_the_lights_in_use_and_others_are_baked_when_first_lit() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert_eq!(
-        entries().len(),
-        1 + originals,
-        "the original lighting bakes no light"
-    );
+    assert_eq!(entries().len(), 1, "the original lighting bakes no light");
     let out = render(Some("second"));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("baking light(s) extra1"), "{err}");
+    assert_eq!(entries().len(), 2, "{:?}", entries());
+    // A preset with a factor for one original light: the bake adds every original light's
+    // entry (their shares need them all), and the preset renders.
+    let originals = original_entries(&d);
+    assert!(
+        originals >= 2,
+        "scenegen seed 8 declares two original lights or more"
+    );
+    let scene = relit_engine::scene::Scene::load(&d).unwrap();
+    let first = scene.original_names()[0].clone();
+    doc["presets"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({ "name": "one_off", "originals": { first.as_str(): 0.0 } }));
+    std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+    let out = bake(&[]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert_eq!(entries().len(), 2 + originals, "{:?}", entries());
+    let out = render(Some("one_off"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 /// The frame streams each view to the device (`GpuViews::build_streamed`, no host copy of all

@@ -687,11 +687,16 @@ fn tools_dir() -> PathBuf {
 
 /// The added lights `--lights` names (None: all), checked against the scene.
 pub fn bake_lights_arg(scene: &Scene, arg: &str, eval: bool) -> Result<Option<Vec<String>>> {
-    let added = relit_engine::frame::added_lights(scene);
+    let mut added = relit_engine::frame::added_lights(scene);
     Ok(match arg {
         "all" => None,
         "presets" => {
             let mut v = scene.preset_lights();
+            // A preset with a factor for an original light needs the original lights' entries.
+            if scene.presets.iter().any(|p| !p.originals.is_empty()) {
+                v.extend(scene.original_names());
+                added.extend(scene.original_names());
+            }
             if let (true, Some(syn)) = (eval, &scene.synthetic) {
                 v.extend(syn.conditions.iter().flat_map(|c| c.lights.iter().cloned()));
             }
@@ -702,11 +707,14 @@ pub fn bake_lights_arg(scene: &Scene, arg: &str, eval: bool) -> Result<Option<Ve
         }
         names => {
             let v: Vec<String> = names.split(',').map(|n| n.trim().to_string()).collect();
-            if let Some(n) = v.iter().find(|n| !added.contains(n)) {
+            // An original light's name asks for every original light's entry (per-light control).
+            let originals = scene.original_names();
+            if let Some(n) = (v.iter()).find(|n| !added.contains(n) && !originals.contains(n)) {
                 anyhow::bail!(
-                    "--lights: \"{n}\" is not an added light of {} (added lights: {}; or `presets`, `all`)",
+                    "--lights: \"{n}\" is not a light of {} (added lights: {}; original lights: {}; or `presets`, `all`)",
                     scene.root.join("scene.json").display(),
-                    added.join(", ")
+                    added.join(", "),
+                    originals.join(", ")
                 );
             }
             Some(v)

@@ -194,13 +194,18 @@ pub fn open_renderer(
     Ok((Renderer::new(gpu, fs, net, storage)?, mode))
 }
 
-/// The added lights `l` lights, by name.
+/// The lights `l` needs baked, by name: the added lights it lights, and the original lights
+/// when it sets a factor for one of them.
 pub fn lit(scene: &Scene, l: &Lighting) -> Vec<String> {
     let names = relit_engine::frame::added_lights(scene);
-    (names.into_iter().zip(&l.intensities))
+    let mut v: Vec<String> = (names.into_iter().zip(&l.intensities))
         .filter(|(_, &i)| i != 0.0)
         .map(|(n, _)| n)
-        .collect()
+        .collect();
+    if l.per_light() {
+        v.extend(scene.original_names());
+    }
+    v
 }
 
 fn lighting(scene: &Scene, preset: Option<&str>) -> Result<Lighting> {

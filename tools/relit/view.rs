@@ -257,6 +257,14 @@ impl App {
             KeyCode::KeyT if !originals.is_empty() => {
                 self.selected_original = (self.selected_original + 1) % originals.len()
             }
+            KeyCode::KeyZ | KeyCode::KeyX
+                if originals.len() >= 2 && self.renderer.scene.split == 0 =>
+            {
+                bail!(
+                    "Z X: the original lights have no entries in the bake yet: run `relit bake {} --lights all` once, then start the viewer again",
+                    self.scene.root.display()
+                )
+            }
             KeyCode::KeyZ | KeyCode::KeyX if !originals.is_empty() => {
                 let d = if code == KeyCode::KeyX { 0.1 } else { -0.1 };
                 self.lighting.originals.resize(originals.len(), AS_CAPTURED);

@@ -158,8 +158,7 @@ impl BakeCache {
                 .all(|v| self.esrc(&v.name).exists() && self.msrc(&v.name).exists())
     }
 
-    /// The added lights of `p`, and the original lights when E_src is split among them
-    /// ([`super::run::splits_originals`]), whose entry lacks a view's map.
+    /// The lights `p` asks for ([`super::run::wanted_lights`]) whose entry lacks a view's map.
     pub fn missing_lights<'a>(&self, scene: &'a Scene, p: &BakeParams) -> Vec<&'a Light> {
         let missing = |l: &Light| {
             scene
@@ -167,9 +166,8 @@ impl BakeCache {
                 .iter()
                 .any(|v| !self.eadd(&v.name, l, p).exists())
         };
-        super::run::entry_lights(scene)
-            .filter(|l| (l.original || p.wants(l)) && missing(l))
-            .collect()
+        let wanted = super::run::wanted_lights(scene, p);
+        wanted.into_iter().filter(|l| missing(l)).collect()
     }
 
     /// Per-vertex albedo (rgb, weight), tagged "RALB".

@@ -276,9 +276,7 @@ pub fn bake(
     if scene.views.iter().all(|v| cache.esrc(&v.name).exists()) {
         let albedo = st.albedo_mesh()?;
         st.mirror(&slice)?;
-        let lights: Vec<&Light> = entry_lights(scene)
-            .filter(|l| l.original || p.wants(l))
-            .collect();
+        let lights = wanted_lights(scene, p);
         let Stages {
             s,
             progress,
@@ -547,6 +545,22 @@ pub fn entry_lights(scene: &Scene) -> impl Iterator<Item = &Light> + Clone {
     let split = splits_originals(scene);
     let added = scene.lights.iter().filter(|l| !l.original);
     added.chain(scene.lights.iter().filter(move |l| split && l.original))
+}
+
+/// The entry lights `p` asks for: the added lights it wants, and every original light (their
+/// shares need all of them) when it names one of them or asks for all lights. Like an added
+/// light's, they are baked when first used (a lighting with a factor for one original light)
+/// or asked for (`relit bake --lights all`, a preset with `originals`).
+pub fn wanted_lights<'a>(scene: &'a Scene, p: &BakeParams) -> Vec<&'a Light> {
+    let originals = match &p.lights {
+        None => true,
+        Some(n) => scene
+            .lights
+            .iter()
+            .any(|l| l.original && n.contains(&l.name)),
+    };
+    let wants = |l: &Light| if l.original { originals } else { p.wants(l) };
+    entry_lights(scene).filter(|l| wants(l)).collect()
 }
 
 /// Whether E_src's indirect part comes from the source cache: when asked for and the scene

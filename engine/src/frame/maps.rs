@@ -197,7 +197,7 @@ impl ViewMaps {
         };
         let msrc = files(&|v| cache.msrc(v));
         let esrc = files(&|v| cache.esrc(v));
-        let lights: Vec<_> = crate::bake::run::entry_lights(scene).collect();
+        let lights = super::scene::layer_lights(scene, &cache, params);
         let mut eadd = Some(Vec::new());
         for l in &lights {
             match (files(&|v| cache.eadd(v, l, params)), eadd.as_mut()) {

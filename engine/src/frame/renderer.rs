@@ -313,7 +313,10 @@ impl Renderer {
         }
         if lighting.per_light() && norig >= 2 && self.scene.split == 0 {
             return Err(Error::Other(
-                "a factor for one original light needs their entries in the bake: run `relit bake` again".into(),
+                "a factor for one original light needs the original lights' entries in the bake: \
+                 `relit bake SCENE --lights all` (render and fly bake them when a lighting they \
+                 render sets such a factor)"
+                    .into(),
             ));
         }
         Ok(())

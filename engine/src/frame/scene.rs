@@ -140,11 +140,9 @@ impl FrameScene {
         let maps = |h: HostMaps| ViewMaps::upload_cached(gpu, scene, params, h, &mut load, format);
         let mut fs = FrameScene::build(gpu, &mesh, &cams, host, &scene.lights, false, maps)?;
         fs.unbaked = unbaked;
-        // The loaders read every original light's layers or fail (relit render bakes them first).
-        if bakerun::splits_originals(scene) {
-            fs.split = scene.lights.iter().filter(|l| l.original).count() as u32;
-        }
         let cache = BakeCache::of(scene, params)?;
+        let layers = layer_lights(scene, &cache, params);
+        fs.split = layers.iter().filter(|l| l.original).count() as u32;
         let albedo = cache.read_albedo(mesh.positions.len())?;
         fs.originals = original_lights(&scene.lights, Some((&mesh, &albedo)));
         fs.original_buf = light_buffer(gpu, "frame original lights", &fs.originals)?;
@@ -172,6 +170,23 @@ impl FrameScene {
             light_buffer(&self.mesh.positions.gpu, "frame emitters", &self.emitters)?;
         Ok(())
     }
+}
+
+/// The lights with E_add layers in a frame of `scene`, in layer order: every added light (zero
+/// layers where it has no entry yet), then the declared original lights when E_src is split
+/// among them and each of them has its entry (else none: per-light factors are refused until
+/// they are baked).
+pub(crate) fn layer_lights<'a>(
+    scene: &'a Scene,
+    cache: &BakeCache,
+    params: &BakeParams,
+) -> Vec<&'a Light> {
+    let baked = |l: &Light| {
+        !l.original || (scene.views.iter()).all(|v| cache.eadd(&v.name, l, params).exists())
+    };
+    let all = bakerun::entry_lights(scene);
+    let originals = all.clone().filter(|l| l.original).all(baked);
+    all.filter(|l| !l.original || originals).collect()
 }
 
 /// Reads a scene's images and its complete bake cache into host maps.
@@ -231,7 +246,7 @@ fn load_lighting_map(
         }
         LightingMap::Eadd => {
             let npix = (m.width * m.height) as usize;
-            for l in crate::bake::run::entry_lights(scene) {
+            for l in layer_lights(scene, &cache, params) {
                 let files: Vec<_> = views().map(|v| cache.eadd(&v.name, l, params)).collect();
                 m.split += l.original as usize;
                 // A light no map was baked for has not been used yet: zero layers, refused if lit.

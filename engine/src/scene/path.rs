@@ -351,12 +351,15 @@ impl CameraPath {
             .collect()
     }
 
-    /// The names of the lights some lighting keyframe lights (intensity not zero).
+    /// The names of the lights some lighting keyframe lights (intensity not zero) or sets a
+    /// factor for (an original light).
     pub fn lit_lights(&self) -> Vec<String> {
         let mut v: Vec<String> = (self.lights.iter())
             .flat_map(|k| k.intensities.iter().filter(|(_, &i)| i != 0.0))
             .map(|(n, _)| n.clone())
             .collect();
+        // A factor for an original light: that light's entry (the bake adds the others').
+        v.extend((self.lights.iter()).flat_map(|k| k.originals.keys().cloned()));
         v.sort();
         v.dedup();
         v
