@@ -60,6 +60,10 @@ pub enum BenchCmd {
         width: Option<u32>,
         #[arg(long)]
         json: Option<PathBuf>,
+        /// The lighting preset to time (default: the scene's first preset, else the original
+        /// lighting).
+        #[arg(long)]
+        lighting: Option<String>,
         #[command(flatten)]
         frame: crate::render::FrameArgs,
     },
@@ -154,8 +158,16 @@ pub fn run(cmd: &BenchCmd, opts: &GpuOptions) -> Result<()> {
             frames,
             width,
             json,
+            lighting,
             frame,
-        } => frame_bench(scene, *res, *frames, *width, json.as_ref(), frame, opts),
+        } => frame_bench(
+            scene,
+            (*res, *frames),
+            (*width, lighting.as_deref()),
+            json.as_ref(),
+            frame,
+            opts,
+        ),
         BenchCmd::Net {
             width,
             res,
@@ -730,9 +742,8 @@ fn moving_frames(
 
 fn frame_bench(
     dir: &std::path::Path,
-    (w, h): (u32, u32),
-    frames: u32,
-    width: Option<u32>,
+    ((w, h), frames): ((u32, u32), u32),
+    (width, preset): (Option<u32>, Option<&str>),
     json: Option<&PathBuf>,
     fa: &crate::render::FrameArgs,
     opts: &GpuOptions,
@@ -751,8 +762,15 @@ fn frame_bench(
         }
         args.mode = Some(crate::render::ModeArg::Ulr);
     }
+    let light = match preset.or(scene.presets.first().map(|p| p.name.as_str())) {
+        Some(p) => Lighting::preset(&scene, p)?,
+        None => Lighting::original(&scene),
+    };
+    // Every added light (and the original lights' entries when the preset needs them).
+    let mut used = relit_engine::frame::added_lights(&scene);
+    used.extend(crate::render::lit(&scene, &light));
     let (r, mut mode) =
-        crate::render::open_renderer(&gpu, &scene, &args, Some((w, h)), None, false)?;
+        crate::render::open_renderer(&gpu, &scene, &args, Some((w, h)), Some(used), false)?;
     let mut r = if let (true, Some(width)) = (random_net, width) {
         let storage = args.storage.resolve(&gpu.caps, Some((w, h)));
         let net = Network::from_params(
@@ -793,10 +811,6 @@ fn frame_bench(
             .iter()
             .map(|v| crate::render::rescale(&v.camera, w, h))
             .collect(),
-    };
-    let light = match scene.presets.first() {
-        Some(p) => Lighting::preset(&scene, &p.name)?,
-        None => Lighting::original(&scene),
     };
     println!("device: {}", gpu.caps.name);
     println!(

@@ -689,7 +689,8 @@ fn tools_dir() -> PathBuf {
 pub fn bake_lights_arg(scene: &Scene, arg: &str, eval: bool) -> Result<Option<Vec<String>>> {
     let mut added = relit_engine::frame::added_lights(scene);
     Ok(match arg {
-        "all" => None,
+        // Every light by name: the original lights' entries too (per-light control).
+        "all" => Some(scene.lights.iter().map(|l| l.name.clone()).collect()),
         "presets" => {
             let mut v = scene.preset_lights();
             // A preset with a factor for an original light needs the original lights' entries.

@@ -548,17 +548,13 @@ pub fn entry_lights(scene: &Scene) -> impl Iterator<Item = &Light> + Clone {
 }
 
 /// The entry lights `p` asks for: the added lights it wants, and every original light (their
-/// shares need all of them) when it names one of them or asks for all lights. Like an added
-/// light's, they are baked when first used (a lighting with a factor for one original light)
-/// or asked for (`relit bake --lights all`, a preset with `originals`).
+/// shares need all of them) when it names one of them. Like an added light's, they are baked
+/// when first used (a lighting with a factor for one original light) or asked for (`relit bake
+/// --lights all` names every light, a preset with `originals`); `lights: None` (every added
+/// light: datasets, `dump --parts`) asks for none.
 pub fn wanted_lights<'a>(scene: &'a Scene, p: &BakeParams) -> Vec<&'a Light> {
-    let originals = match &p.lights {
-        None => true,
-        Some(n) => scene
-            .lights
-            .iter()
-            .any(|l| l.original && n.contains(&l.name)),
-    };
+    let named = |l: &Light| p.lights.as_ref().is_some_and(|n| n.contains(&l.name));
+    let originals = scene.lights.iter().any(|l| l.original && named(l));
     let wants = |l: &Light| if l.original { originals } else { p.wants(l) };
     entry_lights(scene).filter(|l| wants(l)).collect()
 }
