@@ -152,7 +152,7 @@ pub fn added_lights(scene: &Scene) -> Vec<String> {
         .collect()
 }
 
-/// CPU mirror of `removed_share` (emitters.glsl): the share of one view's E_src the factors
+/// CPU mirror of `removed_share` (originals.glsl): the share of one view's E_src the factors
 /// remove, from the simulated irradiance of each original light there (`sims`, empty when the
 /// scene has no per-light entries).
 pub fn removed_share(sims: &[Vec3], keep: &[[f32; 3]], norig: usize) -> Vec3 {
