@@ -2,9 +2,10 @@
 // The view-dependent layer's fit, first half (§3: L = a·E + S; frame/glossy.comp pools and
 // solves). At each novel-view pixel the input views j that see the surface point x give a
 // photo value I_j and three regressors X_j,c: the declared original lights x sees, through a
-// Gaussian lobe of width GLOSSY_LOBE_1..3 around view j's mirror direction (lobe.glsl; the
-// normal smoothed over the surface around x, `smooth_normal`). For the model I_j = D + s·X_j
-// (RGB D, grey s) it writes the centred sums a window can pool:
+// GGX lobe of roughness GLOSSY_LOBE_1..3 seen from view j (lobe.glsl; the normal smoothed over
+// the surface around x, `smooth_normal`); views more grazing than GLOSSY_COS_MIN are skipped.
+// For the model I_j = D + s·X_j (RGB D, grey s) it writes the centred sums a window, or a whole
+// surface (frame/glossy_fit.rs), can pool:
 //   plane 0: Σ|X − X̄|² per lobe;  plane 1: Σ(X − X̄)·(I − Ī) per lobe;
 //   plane 2: (Σ|I − Ī|², views, original lights seen (bits), GLOSSY_SPREAD²·|Ī|²·views);
 //   planes 3–5: X̄ of each lobe under I_1's view weights (D = I_1 − s·X̄ keeps I_1's blend).
@@ -60,12 +61,14 @@ void main() {
     for (uint a = 0u; a < pc.nactive; ++a) {
         uint j = active_views[a];
         if (visible_pixel(j, x, pc.view_w, pc.view_h) < 0) continue;
-        vec3 col = sample_map(tex_img, project_px(j, x), j);
         vec3 ci = cam_center(cams[j]);
+        // Grazing views: the proxy's errors grow and Schlick's Fresnel is least sure.
+        if (dot(n, normalize(ci - x)) < GLOSSY_COS_MIN) continue;
+        vec3 col = sample_map(tex_img, project_px(j, x), j);
         vec3 e = pc.eye.xyz - ci;
         float w1 = 1.0 / max(dot(e, e), 1e-8);
         vec3 xs[LOBES];
-        lobe_originals(x, reflect(normalize(x - ci), n), seen, xs);
+        lobe_originals(x, normalize(ci - x), n, seen, xs);
         for (uint c = 0u; c < LOBES; ++c) {
             sx[c] += xs[c]; swx[c] += w1 * xs[c]; sxx[c] += dot(xs[c], xs[c]); sxi[c] += dot(xs[c], col);
         }

@@ -1,5 +1,5 @@
 // Lights seen through a glossy lobe (frame/glossy_sums.comp, frame/glossy.comp): a surface point's
-// shadow ray to a light and the light's radiance through a normalized Gaussian lobe.
+// shadow ray to a light and the light's radiance through a GGX microfacet lobe.
 // Needs: tlas, the Originals, Emitters and Intensity buffers (emitters.glsl) and the push
 // constants norig, nlights, alpha_dim.
 #ifndef RELIT_LOBE_GLSL
@@ -10,6 +10,14 @@ const uint MAX_ORIG = 8u;  // original lights that take part in the fit (shadow 
 
 float lobe_width(uint c) {
     return c == 0u ? GLOSSY_LOBE_1 : (c == 1u ? GLOSSY_LOBE_2 : GLOSSY_LOBE_3);
+}
+
+// The largest strength lobe c may take: GLOSSY_S_MAX for the narrowest, less for wider ones in
+// proportion to their roughness (a rough surface that reflects as much as a mirror is a rough
+// metal, rare indoors; a near-mirror whose proxy blurs its fit would otherwise take a wide lobe
+// and glow around every lamp). A slope above it rejects the lobe.
+float lobe_s_max(uint c) {
+    return GLOSSY_S_MAX * GLOSSY_LOBE_1 / lobe_width(c);
 }
 
 // A light's centre, unit emitting normal and area.
@@ -42,34 +50,43 @@ bool sees_light(vec3 x, vec3 n, Light l) {
     return rayQueryGetIntersectionTypeEXT(rq, true) == gl_RayQueryCommittedIntersectionNoneEXT;
 }
 
-// Light l as seen from x against unit r: its solid angle Ω (0 from behind) and the squared
-// angle θ² between r and the direction to its centre.
-void light_seen(vec3 x, vec3 r, Light l, out float omega, out float th2) {
+// Light l as seen from x: its solid angle Ω (0 from behind) and the unit direction w to its
+// centre.
+void light_seen(vec3 x, Light l, out float omega, out vec3 w) {
     vec3 c, nl;
     float area;
     light_frame(l, c, nl, area);
     vec3 d = c - x;
     float d2 = max(dot(d, d), 1e-6);
-    vec3 w = d * inversesqrt(d2);
+    w = d * inversesqrt(d2);
     float cosl = -dot(nl, w);
     omega = cosl > 0.0 ? min(area * cosl / d2, 2.0 * 3.14159265358979) : 0.0;
-    float th = acos(clamp(dot(w, r), -1.0, 1.0));
-    th2 = th * th;
 }
 
-// The normalized Gaussian lobe of width σ applied to a light of solid angle Ω at angle θ:
-// Ω·exp(−θ²/2v)/(2πv), v = σ² + Ω/4π (the light as a Gaussian of its own solid angle).
-float lobe_weight(float sigma, float omega, float th2) {
+// A microfacet lobe of GGX roughness α lit by a light of solid angle Ω in unit direction w,
+// seen from unit direction v over normal n: Ω·D(n·h)·F(v·h)/(4·n·v·F0), h the half vector, D
+// the GGX distribution with α widened by the light's size (α'² = α² + Ω/8π: the light's disk,
+// of radius √(Ω/π), halves in half-vector space), F Schlick's Fresnel of a dielectric (F0 =
+// 0.04; the fitted strength s then reads as F0/0.04: 1 for plastic, lacquer, a TV). Shadowing
+// is left to s. Zero from views more grazing than GLOSSY_COS_MIN (the sums pass skips them).
+float lobe_weight(float alpha, float omega, vec3 w, vec3 v, vec3 n) {
     const float PI = 3.14159265358979;
-    float v = sigma * sigma + omega / (4.0 * PI);
-    return omega * exp(-th2 / (2.0 * v)) / (2.0 * PI * v);
+    float cv = dot(n, v);
+    if (cv < GLOSSY_COS_MIN || dot(n, w) <= 0.0) return 0.0;
+    float a2 = alpha * alpha + omega / (8.0 * PI);
+    vec3 h = normalize(w + v);
+    float ch = max(dot(n, h), 0.0);
+    float t = ch * ch * (a2 - 1.0) + 1.0;
+    float f = 1.0 + (1.0 / 0.04 - 1.0) * pow(1.0 - clamp(dot(v, h), 0.0, 1.0), 5.0);
+    return omega * a2 / (PI * t * t) * f / (4.0 * cv);
 }
 
-// Light l's radiance seen from x through the lobe of width σ around unit r.
-vec3 lobe_light(vec3 x, vec3 r, float sigma, Light l) {
-    float omega, th2;
-    light_seen(x, r, l, omega, th2);
-    return omega > 0.0 ? l.radiance.rgb * lobe_weight(sigma, omega, th2) : vec3(0.0);
+// Light l's radiance seen from x (normal n) from unit direction v through lobe α.
+vec3 lobe_light(vec3 x, vec3 v, vec3 n, float alpha, Light l) {
+    float omega;
+    vec3 w;
+    light_seen(x, l, omega, w);
+    return omega > 0.0 ? l.radiance.rgb * lobe_weight(alpha, omega, w, v, n) : vec3(0.0);
 }
 
 // The surface normal a mirror direction takes at pixel xy: the mean of the G-buffer normals
@@ -93,17 +110,18 @@ vec3 smooth_normal(ivec2 xy, vec3 n, float depth) {
     return normalize(s);
 }
 
-// The original lights x sees (bit l of `seen`), through each lobe around r, as photographed:
-// each light's geometry once, then one exponential per lobe.
-void lobe_originals(vec3 x, vec3 r, uint seen, out vec3 xs[LOBES]) {
+// The original lights x (normal n) sees (bit l of `seen`), through each lobe from unit view
+// direction v, as photographed: each light's geometry once, then one GGX term per lobe.
+void lobe_originals(vec3 x, vec3 v, vec3 n, uint seen, out vec3 xs[LOBES]) {
     for (uint c = 0u; c < LOBES; ++c) xs[c] = vec3(0.0);
     for (uint l = 0u; l < min(pc.norig, MAX_ORIG); ++l) {
         if ((seen & (1u << l)) == 0u) continue;
         Light o = originals[l].light;
-        float omega, th2;
-        light_seen(x, r, o, omega, th2);
+        float omega;
+        vec3 w;
+        light_seen(x, o, omega, w);
         if (omega <= 0.0) continue;
-        for (uint c = 0u; c < LOBES; ++c) xs[c] += o.radiance.rgb * lobe_weight(lobe_width(c), omega, th2);
+        for (uint c = 0u; c < LOBES; ++c) xs[c] += o.radiance.rgb * lobe_weight(lobe_width(c), omega, w, v, n);
     }
 }
 

@@ -837,6 +837,13 @@ fn frame_bench(
         "warm-up frame (includes shader compilation): {:.2} s",
         t0.elapsed().as_secs_f64()
     );
+    if r.runs_glossy(mode) {
+        let fit = r.refit_glossy()?;
+        println!(
+            "glossy fit per surface (once per scene, before its first glossy frame): {:.2} s",
+            fit.as_secs_f64()
+        );
+    }
     let mut stages: Vec<(String, Vec<f64>)> = Vec::new();
     let (mut totals, mut walls) = (Vec::new(), Vec::new());
     for i in 0..frames.max(1) as usize {

@@ -1,21 +1,22 @@
 //! The view-dependent layer (§3: L = a·E + S): `shaders_glsl/frame/glossy_sums.comp` and
 //! `glossy.comp`. The photos that see a surface point are fitted as `I_j ≈ D + Σ_c w_c·X_j,c`
-//! (RGB D, grey w_c), X_j,c the declared original lights seen through a Gaussian lobe of width
-//! GLOSSY_LOBE_1..3 around view j's mirror direction. The first pass gathers each pixel's
-//! centred sums over the views; the second pools them over a 5×5 window of the same surface
-//! (the strengths serve a patch, D stays per pixel) and gives the diffuse part D, which eq. 5
-//! relights, and the view-dependent part S: the photos' own (I_1 − D), dimmed with their lights,
-//! plus each lit lamp through the lobes around the novel view's mirror direction. Glossy mode
-//! shows `D · (E_add + E_src − E_rem) / E_src + S` (`output.glsl`): ratio's image under the
-//! original lighting, and where no fit holds.
+//! (RGB D, grey w_c), X_j,c the declared original lights through a GGX microfacet lobe of
+//! roughness GLOSSY_LOBE_1..3 seen from view j, with Schlick's Fresnel (`lobe.glsl`; w_c then
+//! reads as the surface's F0). The first pass gathers each pixel's centred sums over the views.
+//! The second takes the strengths of the pixel's surface, fitted once per scene from every
+//! photo of that surface (`glossy_fit.rs`), or where it has none the pixel's own fit pooled over
+//! 5×5 pixels; it gives the diffuse part D, which eq. 5 relights, and the view-dependent part S:
+//! the photos' own (I_1 − D), dimmed with their lights, plus each lit lamp through the lobes
+//! seen from the novel view. Glossy mode shows `D · (E_add + E_src − E_rem) / E_src + S`
+//! (`output.glsl`): ratio's image under the original lighting, and where no fit holds.
 
 use glam::Vec3;
 
 use super::RefInputs;
 use crate::bake::GpuLight;
 use crate::constants::{
-    GLOSSY_FIT, GLOSSY_FIT_RAMP, GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3, GLOSSY_MIN_VIEWS,
-    GLOSSY_SHARE, GLOSSY_SPREAD, GLOSSY_S_MAX,
+    GLOSSY_COS_MIN, GLOSSY_FIT, GLOSSY_FIT_RAMP, GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3,
+    GLOSSY_MIN_VIEWS, GLOSSY_SHARE, GLOSSY_SPREAD, GLOSSY_S_MAX,
 };
 use crate::gpu::shaders;
 use crate::scene::Mesh;
@@ -56,6 +57,13 @@ fn lobe_width(c: usize) -> f32 {
     [GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3][c]
 }
 
+/// The largest strength lobe c may take (`lobe.glsl`'s `lobe_s_max`): GLOSSY_S_MAX for the
+/// narrowest, less for wider ones in proportion to their roughness; a slope above it rejects
+/// the lobe (a near-mirror blurred by its proxy would glow around every lamp).
+pub fn lobe_s_max(c: usize) -> f32 {
+    GLOSSY_S_MAX * GLOSSY_LOBE_1 / lobe_width(c)
+}
+
 /// Centre, unit emitting normal and area of a light.
 fn light_frame(l: &GpuLight) -> (Vec3, Vec3, f32) {
     let v = |a: [f32; 4]| Vec3::from_slice(&a[..3]);
@@ -82,22 +90,47 @@ pub fn sees_light(mesh: &Mesh, x: Vec3, n: Vec3, l: &GpuLight) -> bool {
     !crate::cpu::occluded(mesh, x + n * 1e-3, d / dist, 1e-3, dist - 0.05)
 }
 
-/// Light l's radiance from x through a normalized Gaussian lobe of width σ around unit r:
-/// L·Ω·exp(−θ²/2v)/(2πv), v = σ² + Ω/4π.
-pub fn lobe_light(x: Vec3, r: Vec3, sigma: f32, l: &GpuLight) -> Vec3 {
+/// The GGX lobe of roughness α that light l (solid angle Ω, unit direction w from x) gives
+/// towards unit v over normal n (`lobe.glsl`'s `lobe_weight`): Ω·D(n·h)·F(v·h)/(4·n·v·F0), α
+/// widened to α'² = α² + Ω/8π, F Schlick's with F0 = 0.04; zero below GLOSSY_COS_MIN.
+pub fn lobe_weight(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> f32 {
+    use std::f32::consts::PI;
+    let cv = n.dot(v);
+    if cv < GLOSSY_COS_MIN || n.dot(w) <= 0.0 {
+        return 0.0;
+    }
+    let a2 = alpha * alpha + omega / (8.0 * PI);
+    let h = (w + v).normalize();
+    let ch = n.dot(h).max(0.0);
+    let t = ch * ch * (a2 - 1.0) + 1.0;
+    let f = 1.0 + (1.0 / 0.04 - 1.0) * (1.0 - v.dot(h).clamp(0.0, 1.0)).powi(5);
+    omega * a2 / (PI * t * t) * f / (4.0 * cv)
+}
+
+/// Light l's solid angle from x (0 from behind) and the unit direction to its centre.
+fn light_seen(x: Vec3, l: &GpuLight) -> (f32, Vec3) {
     use std::f32::consts::PI;
     let (c, nl, area) = light_frame(l);
     let d = c - x;
     let d2 = d.length_squared().max(1e-6);
     let w = d / d2.sqrt();
     let cosl = -nl.dot(w);
-    if cosl <= 0.0 {
+    let omega = if cosl > 0.0 {
+        (area * cosl / d2).min(2.0 * PI)
+    } else {
+        0.0
+    };
+    (omega, w)
+}
+
+/// Light l's radiance seen from x (normal n) from unit direction v through the lobe of GGX
+/// roughness α.
+pub fn lobe_light(x: Vec3, v: Vec3, n: Vec3, alpha: f32, l: &GpuLight) -> Vec3 {
+    let (omega, w) = light_seen(x, l);
+    if omega <= 0.0 {
         return Vec3::ZERO;
     }
-    let omega = (area * cosl / d2).min(2.0 * PI);
-    let v = sigma * sigma + omega / (4.0 * PI);
-    let th = w.dot(r).clamp(-1.0, 1.0).acos();
-    Vec3::from_slice(&l.radiance[..3]) * (omega * (-th * th / (2.0 * v)).exp() / (2.0 * PI * v))
+    Vec3::from_slice(&l.radiance[..3]) * lobe_weight(alpha, omega, w, v, n)
 }
 
 /// Planes of the sums pass: Σ|X − X̄|² and Σ(X − X̄)·(I − Ī) per lobe, (Σ|I − Ī|², views,
@@ -197,11 +230,11 @@ fn seen_originals(r: &RefInputs, mesh: &Mesh, x: Vec3, n: Vec3) -> u32 {
         .fold(0, |m, (l, _)| m | 1 << l)
 }
 
-/// The seen original lights through lobe c around rd.
-fn lobe_originals(r: &RefInputs, seen: u32, x: Vec3, rd: Vec3, c: usize) -> Vec3 {
+/// The seen original lights through lobe c, seen from unit v over normal n.
+fn lobe_originals(r: &RefInputs, seen: u32, (x, n): (Vec3, Vec3), v: Vec3, c: usize) -> Vec3 {
     (r.originals.iter().take(MAX_ORIG).enumerate())
         .filter(|(l, _)| seen & (1 << l) != 0)
-        .map(|(_, o)| lobe_light(x, rd, lobe_width(c), &o.light))
+        .map(|(_, o)| lobe_light(x, v, n, lobe_width(c), &o.light))
         .sum()
 }
 
@@ -225,12 +258,16 @@ pub fn sums_reference(r: &RefInputs, mesh: &Mesh, comp: &[[f32; 4]]) -> Vec<[f32
             if r.data.visible_pixel(ju, x).is_none() {
                 continue;
             }
+            let ci = r.data.cameras[ju].center();
+            let v = (ci - x).normalize();
+            // Grazing views are skipped (glossy_sums.comp).
+            if n.dot(v) < GLOSSY_COS_MIN {
+                continue;
+            }
             let px = super::reproject::project_px(r.data, ju, x);
             let col = super::maps::sample_bilinear(&r.maps.img[ju], vw, vh, px);
-            let ci = r.data.cameras[ju].center();
             let e = r.eye - ci;
-            let rd = reflect((x - ci).normalize(), n);
-            let xs = [0, 1, 2].map(|c| lobe_originals(r, seen, x, rd, c));
+            let xs = [0, 1, 2].map(|c| lobe_originals(r, seen, (x, n), v, c));
             sums.add(col, 1.0 / e.dot(e).max(1e-8), xs);
         }
         if let Some(planes) = sums.planes(seen) {
@@ -272,7 +309,11 @@ fn strengths(r: &RefInputs, sums: &[[f32; 4]], p: usize) -> Option<[f32; LOBES]>
         if cxx[c] <= 1e-8 {
             continue;
         }
-        s[c] = (cxi[c] / cxx[c]).clamp(0.0, GLOSSY_S_MAX);
+        s[c] = (cxi[c] / cxx[c]).max(0.0);
+        if s[c] > lobe_s_max(c) {
+            s[c] = 0.0;
+            continue;
+        }
         let e = (2.0 * s[c] * cxi[c] - s[c] * s[c] * cxx[c]) / cii;
         // What the lobe explains must itself exceed the spread threshold.
         if s[c] > 0.0 && e * cii > spread {
@@ -299,14 +340,30 @@ fn kept(r: &RefInputs, irr: &[[f32; 4]], p: usize) -> Vec3 {
     (Vec3::ONE - Vec3::from_slice(&irr[2 * npix + p][..3]) / es).max(Vec3::ZERO)
 }
 
+/// The surface fit a pixel falls back on: the fit per triangle ([`super::glossy_fit`]) and the
+/// novel view's triangle ids (+1, 0: none).
+pub struct SurfaceFit<'a> {
+    pub per_tri: &'a [[f32; 4]],
+    pub gtri: &'a [u32],
+}
+
+impl SurfaceFit<'_> {
+    fn at(&self, p: usize) -> Option<[f32; LOBES]> {
+        let t = *self.gtri.get(p)?;
+        let f = self.per_tri.get((t as usize).checked_sub(1)?)?;
+        Some([f[0], f[1], f[2]])
+    }
+}
+
 /// CPU reference of the layer pass: 2 planes of `width × height` vec4, from the frame's
 /// composites (I_1, I_8), glossy sums and irradiance planes (E_src, E_add, E_rem) as the passes
-/// wrote them.
+/// wrote them, and the surface fit.
 pub fn reference(
     r: &RefInputs,
     mesh: &Mesh,
     comp: &[[f32; 4]],
     (sums, irr): (&[[f32; 4]], &[[f32; 4]]),
+    fit: &SurfaceFit,
 ) -> Vec<[f32; 4]> {
     let npix = (r.width * r.height) as usize;
     let mut out = vec![[0f32; 4]; PLANES * npix];
@@ -316,10 +373,12 @@ pub fn reference(
             continue;
         };
         out[p] = [i1.x, i1.y, i1.z, 0.0];
-        if sums[2 * npix + p][1] == 0.0 {
-            continue;
-        }
-        let Some(mut w) = strengths(r, sums, p).filter(|w| w.iter().any(|&v| v > 0.0)) else {
+        // The pixel's own fit, else its surface's.
+        let own = (sums[2 * npix + p][1] != 0.0)
+            .then(|| strengths(r, sums, p))
+            .flatten();
+        let any = |w: &[f32; LOBES]| w.iter().any(|&v| v > 0.0);
+        let Some(mut w) = own.filter(any).or_else(|| fit.at(p)).filter(any) else {
             continue;
         };
         // At most GLOSSY_SHARE of I_1's luminance is called view-dependent, and D stays at or
@@ -344,21 +403,17 @@ pub fn reference(
 /// Σ_L i_L Σ_c w_c·X_L,c: the lit lamps x sees through the lobes around the novel view's
 /// mirror direction.
 fn lamps(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> Vec3 {
-    let rd = reflect((x - r.eye).normalize(), n);
+    let v = (r.eye - x).normalize();
     let mut s = Vec3::ZERO;
     for (l, e) in r.emitters.iter().enumerate() {
         let k = r.intensities.get(l).copied().unwrap_or(0.0);
         if k > 0.0 && sees_light(mesh, x, n, e) {
             for c in (0..LOBES).filter(|&c| w[c] > 0.0) {
-                s += w[c] * k * lobe_light(x, rd, lobe_width(c), e);
+                s += w[c] * k * lobe_light(x, v, n, lobe_width(c), e);
             }
         }
     }
     s
-}
-
-fn reflect(v: Vec3, n: Vec3) -> Vec3 {
-    v - 2.0 * n.dot(v) * n
 }
 
 /// CPU reference of glossy mode from the glossy planes and the irradiance planes:

@@ -7,6 +7,7 @@ pub mod buffers;
 pub mod emitters;
 pub mod features;
 pub mod glossy;
+pub mod glossy_fit;
 pub mod irradiance;
 pub mod lighting;
 pub mod live;

@@ -9,7 +9,7 @@ use super::{
 };
 use crate::bake::GpuLight;
 use crate::error::{Error, Result};
-use crate::gpu::{bytes_of, vk, Bind, Gpu, Graph, Pipeline, Timer};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Graph, Pipeline, Timer};
 use crate::net::{Network, Storage, INPUT_CHANNELS};
 use crate::raster::GbufferPass;
 use crate::scene::{Camera, Light};
@@ -49,6 +49,11 @@ pub struct Renderer {
     /// pixels (`output.glsl`'s `hole_fill`): the viewer's moving frame, which would show them
     /// black. Off by default: renders and evaluations score holes as the mode leaves them.
     pub fill_holes: bool,
+    /// The view-dependent fit per triangle (frame/glossy_fit.rs) and the view left out when it
+    /// was made; None until a frame needs it. Zeros while it is being made.
+    pub(super) glossy_fit: Option<(Option<u32>, Buffer)>,
+    pub(super) fitting: bool,
+    zero_fit: Buffer,
 }
 
 /// The push constants of one frame's passes.
@@ -113,6 +118,14 @@ impl Renderer {
             exclude: None,
             display_only: false,
             fill_holes: false,
+            glossy_fit: None,
+            fitting: false,
+            zero_fit: Buffer::from_slice(
+                gpu,
+                "glossy fit (none)",
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                &[[0f32; 4]],
+            )?,
         })
     }
 
@@ -200,6 +213,9 @@ impl Renderer {
         mut timer: Option<&mut Timer>,
     ) -> Result<()> {
         self.check_frame(lighting, mode)?;
+        if self.runs_glossy(mode) {
+            self.ensure_glossy_fit()?;
+        }
         self.buffers(cam.width, cam.height)?;
         let culled = self.cull_views(cam, timer.as_deref_mut())?;
         let b = &self.bufs[0];
@@ -521,6 +537,10 @@ impl Renderer {
             .set("Mirror", Bind::Buffer(&b.mirror))
             .set("Glossy", Bind::Buffer(&b.glossy))
             .set("GlossySums", Bind::Buffer(&b.glossy_sums))
+            .set(
+                "GlossyFit",
+                Bind::Buffer(self.glossy_fit.as_ref().map_or(&self.zero_fit, |f| &f.1)),
+            )
             .set("NetIn", Bind::Buffer(&b.input.buf))
             .set("NetOut", Bind::Buffer(&net_out.buf))
             .set("Hdr", Bind::Buffer(&b.hdr))

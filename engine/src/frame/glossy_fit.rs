@@ -1,0 +1,472 @@
+//! The view-dependent layer's fit per surface (§3: S belongs to a material, not to a pixel).
+//!
+//! A pixel's own fit (`glossy.comp`, pooled over 5×5 pixels) holds only where some photo's
+//! mirror direction meets an original light near that pixel: on the demo room's floor 7 % of
+//! the pixels, and not where a new lamp's highlight falls. A floor is one material, so its
+//! strength can come from every photo that shows a highlight anywhere on it.
+//!
+//! How. The frame's sums pass (`glossy_sums.comp`) runs from up to `FIT_VIEWS` input cameras
+//! at `FIT_WIDTH` pixels under the original lighting; each pixel's centred sums go to its
+//! triangle of the bake mesh. Triangles are grouped into patches (a `CELL` grid × the normal's
+//! dominant axis), and each patch pools the patches within `GLOSSY_REGION` metres on its plane
+//! (normals within ~25°, off the plane by at most 3 cm + 10 % of the distance). Centred sums
+//! add up: the pooled fit is one strength per lobe with a diffuse part per pixel. The lobe
+//! with the largest t statistic (slope over its standard error) wins if that exceeds
+//! `GLOSSY_REGION_T`; otherwise the patch has none. The result is one vec4 per triangle
+//! (w_1..3, t), which `glossy.comp` uses where a pixel has no fit of its own.
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+
+use super::{glossy, Lighting, Mode, Renderer};
+use crate::constants::{E_FLOOR, GLOSSY_REGION, GLOSSY_REGION_T};
+use crate::error::Result;
+use crate::gpu::{vk, Buffer};
+use crate::scene::{Camera, Mesh};
+
+/// Width in pixels of the renders from the input cameras.
+const FIT_WIDTH: u32 = 128;
+/// Input cameras rendered at most (evenly spread over the capture).
+const FIT_VIEWS: usize = 48;
+/// Edge of a patch's grid cell (m).
+const CELL: f32 = 0.25;
+const LOBES: usize = 3;
+/// Pseudo-albedos of one material differ by at most this factor per channel (shading the bake
+/// misses, photo noise); ALBEDO_EPS keeps dark channels from deciding alone.
+const ALBEDO_RATIO: f32 = 1.4;
+const ALBEDO_EPS: f32 = 0.02;
+
+/// The centred sums of the fit I_j ≈ D + s·X_j over a triangle's pixels: Σ|X − X̄|² and
+/// Σ(X − X̄)·(I − Ī) per lobe, Σ|I − Ī|², the view samples and the pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FitSums {
+    pub xx: [f32; LOBES],
+    pub xi: [f32; LOBES],
+    pub ii: f32,
+    pub samples: f32,
+    pub pixels: f32,
+    /// Σ over the pixels of the photos' blend over E_src (the pseudo-albedo of eq. 5).
+    pub albedo: Vec3,
+}
+
+impl FitSums {
+    fn add(&mut self, o: &FitSums) {
+        for c in 0..LOBES {
+            self.xx[c] += o.xx[c];
+            self.xi[c] += o.xi[c];
+        }
+        self.ii += o.ii;
+        self.samples += o.samples;
+        self.pixels += o.pixels;
+        self.albedo += o.albedo;
+    }
+
+    /// The mean pseudo-albedo of the pixels.
+    fn mean_albedo(&self) -> Vec3 {
+        self.albedo / self.pixels.max(1.0)
+    }
+
+    /// Each lobe's strength (one lobe at most) and the winner's t statistic: s_c = Σxi/Σxx, ≥ 0
+    /// and at most `glossy::lobe_s_max(c)` (else the lobe is out), t_c = s_c·√(Σxx/σ²), σ² the residual per degree of freedom (samples
+    /// less one mean per pixel).
+    pub fn strengths(&self) -> [f32; 4] {
+        let dof = (self.samples - self.pixels - 1.0).max(1.0);
+        let mut best = [0f32; 4];
+        for c in 0..LOBES {
+            if self.xx[c] <= 1e-12 {
+                continue;
+            }
+            let s = (self.xi[c] / self.xx[c]).max(0.0);
+            if s > glossy::lobe_s_max(c) {
+                continue;
+            }
+            let var = (self.ii - s * self.xi[c]).max(1e-12) / dof;
+            let t = s * (self.xx[c] / var).sqrt();
+            if t > best[3] {
+                best = [0.0; 4];
+                best[c] = s;
+                best[3] = t;
+            }
+        }
+        if best[3] < GLOSSY_REGION_T {
+            return [0.0; 4];
+        }
+        best
+    }
+}
+
+/// Adds one render's sums (`glossy::SUM_PLANES` planes of `npix`) to the triangles' sums, by
+/// the render's triangle ids (+1, 0: none), with the pseudo-albedo I_1 / E_src of its pixels.
+pub fn accumulate(
+    acc: &mut [FitSums],
+    sums: &[[f32; 4]],
+    gtri: &[u32],
+    (i1, esrc): (&[[f32; 4]], &[[f32; 4]]),
+) {
+    let npix = gtri.len();
+    let v = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
+    for (p, &t) in gtri.iter().enumerate() {
+        let s2 = sums[2 * npix + p];
+        if t == 0 || s2[1] == 0.0 {
+            continue;
+        }
+        let (xx, xi) = (sums[p], sums[npix + p]);
+        acc[t as usize - 1].add(&FitSums {
+            xx: [xx[0], xx[1], xx[2]],
+            xi: [xi[0], xi[1], xi[2]],
+            ii: s2[0],
+            samples: s2[1],
+            pixels: 1.0,
+            albedo: v(i1[p]) / v(esrc[p]).max(Vec3::splat(E_FLOOR)),
+        });
+    }
+}
+
+/// A patch: the triangles of one grid cell whose normals share a dominant axis and whose
+/// pseudo-albedos share a bin.
+#[derive(Default)]
+struct Patch {
+    sums: FitSums,
+    centre: Vec3,
+    normal: Vec3,
+    area: f32,
+}
+
+/// A grid cell and the normal's dominant axis (with its sign, 0..6).
+type Cell = (i32, i32, i32, u8);
+
+fn cell(c: Vec3, n: Vec3) -> Cell {
+    let a = n.abs();
+    let axis = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
+    let g = (c / CELL).floor();
+    (
+        g.x as i32,
+        g.y as i32,
+        g.z as i32,
+        2 * axis as u8 + (n[axis] < 0.0) as u8,
+    )
+}
+
+/// A pseudo-albedo's bin: each channel's log in steps of ln ALBEDO_RATIO (None: no pixels).
+fn albedo_bin(s: &FitSums) -> Option<Bin> {
+    let a = (s.pixels > 0.0).then(|| s.mean_albedo() + ALBEDO_EPS)?;
+    Some(
+        a.to_array()
+            .map(|v| (v.ln() / ALBEDO_RATIO.ln()).floor() as i32),
+    )
+}
+
+/// Whether patch q is of patch p's surface and material: within GLOSSY_REGION, normals within
+/// ~25°, q off p's plane by at most 3 cm + 10 % of their distance, and their pseudo-albedos
+/// within ALBEDO_RATIO of each other in every channel (a mirror or a poster on a wall is another
+/// material on the same plane).
+fn same_surface(p: &Patch, q: &Patch) -> bool {
+    let d = q.centre - p.centre;
+    let dist = d.length();
+    let (a, b) = (p.sums.mean_albedo(), q.sums.mean_albedo());
+    let ratio = (a + ALBEDO_EPS) / (b + ALBEDO_EPS);
+    dist <= GLOSSY_REGION
+        && p.normal.dot(q.normal) >= 0.9
+        && d.dot(p.normal).abs() <= 0.03 + 0.1 * dist
+        && ratio.max_element() <= ALBEDO_RATIO
+        && ratio.min_element() >= 1.0 / ALBEDO_RATIO
+}
+
+/// A pseudo-albedo bin (`albedo_bin`).
+type Bin = [i32; 3];
+/// The patches of a mesh, by cell and albedo bin.
+type Patches = HashMap<Cell, Vec<(Bin, Patch)>>;
+/// Each triangle's cell and bin (None: no render saw it).
+type TriPatch = (Cell, Option<Bin>);
+/// A cell's fits: per bin, (w_1..3, t) and the patch's pixels.
+type CellFits = Vec<(Bin, [f32; 4], f32)>;
+
+fn patches(mesh: &Mesh, acc: &[FitSums]) -> (Patches, Vec<TriPatch>) {
+    let mut patches = Patches::new();
+    let mut of_tri = Vec::with_capacity(mesh.triangles.len());
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let [a, b, c] = tri.map(|i| Vec3::from(mesh.positions[i as usize]));
+        let cr = (b - a).cross(c - a);
+        let (centre, area) = ((a + b + c) / 3.0, 0.5 * cr.length());
+        let (k, bin) = (cell(centre, cr.normalize_or_zero()), albedo_bin(&acc[t]));
+        of_tri.push((k, bin));
+        let Some(bin) = bin else { continue };
+        let list = patches.entry(k).or_default();
+        let i = match list.iter().position(|(b, _)| *b == bin) {
+            Some(i) => i,
+            None => {
+                list.push((bin, Patch::default()));
+                list.len() - 1
+            }
+        };
+        let p = &mut list[i].1;
+        p.sums.add(&acc[t]);
+        p.centre += area * centre;
+        p.normal += 0.5 * cr;
+        p.area += area;
+    }
+    for (_, p) in patches.values_mut().flatten() {
+        p.centre /= p.area.max(1e-12);
+        p.normal = p.normal.normalize_or_zero();
+    }
+    (patches, of_tri)
+}
+
+/// The patches by coarse cells of GLOSSY_REGION: those that can pool with a patch lie in the 27
+/// coarse cells around its own.
+struct Reach<'a> {
+    cells: HashMap<(i32, i32, i32), Vec<&'a Patch>>,
+}
+
+impl<'a> Reach<'a> {
+    fn new(patches: &'a Patches) -> Reach<'a> {
+        let mut cells: HashMap<(i32, i32, i32), Vec<&Patch>> = HashMap::new();
+        for (_, p) in patches.values().flatten() {
+            cells.entry(Self::coarse(p.centre)).or_default().push(p);
+        }
+        Reach { cells }
+    }
+
+    fn coarse(c: Vec3) -> (i32, i32, i32) {
+        let g = (c / GLOSSY_REGION).floor();
+        (g.x as i32, g.y as i32, g.z as i32)
+    }
+
+    /// Patch p's sums pooled with those of every patch on its surface (`same_surface`).
+    fn pooled(&self, p: &Patch) -> FitSums {
+        let (x, y, z) = Self::coarse(p.centre);
+        let mut sums = FitSums::default();
+        for (dx, dy, dz) in
+            (-1..=1).flat_map(|a| (-1..=1).flat_map(move |b| (-1..=1).map(move |c| (a, b, c))))
+        {
+            let near = self.cells.get(&(x + dx, y + dy, z + dz));
+            for q in near.into_iter().flatten().filter(|q| same_surface(p, q)) {
+                sums.add(&q.sums);
+            }
+        }
+        sums
+    }
+}
+
+/// Per triangle of `mesh`: (w_1..3, t) from the sums pooled over its surface (module comment).
+/// A triangle no render saw takes the fit of its cell's patch with the most pixels.
+pub fn pool(mesh: &Mesh, acc: &[FitSums]) -> Vec<[f32; 4]> {
+    let (patches, of_tri) = patches(mesh, acc);
+    let reach = Reach::new(&patches);
+    let fits: HashMap<Cell, CellFits> = (patches.iter())
+        .map(|(k, list)| {
+            let f =
+                (list.iter()).map(|(bin, p)| (*bin, reach.pooled(p).strengths(), p.sums.pixels));
+            (*k, f.collect())
+        })
+        .collect();
+    (of_tri.iter())
+        .map(|(k, bin)| {
+            let list = fits.get(k).map_or(&[][..], |v| &v[..]);
+            let own = list.iter().find(|(b, _, _)| Some(*b) == *bin);
+            let most = list.iter().max_by(|a, b| a.2.total_cmp(&b.2));
+            own.or(most).map_or([0.0; 4], |f| f.1)
+        })
+        .collect()
+}
+
+/// `cam` at `width` pixels across (same field of view).
+fn at_width(cam: &Camera, width: u32) -> Camera {
+    let f = width as f32 / cam.width as f32;
+    Camera {
+        width,
+        height: ((cam.height as f32 * f).round() as u32).max(1),
+        fx: cam.fx * f,
+        fy: cam.fy * f,
+        cx: cam.cx * f,
+        cy: cam.cy * f,
+        ..*cam
+    }
+}
+
+/// The input views the fit renders from: all but the excluded one, at most FIT_VIEWS evenly.
+fn fit_views(n: usize, exclude: Option<u32>) -> Vec<usize> {
+    let all: Vec<usize> = (0..n).filter(|&j| Some(j as u32) != exclude).collect();
+    let k = all.len().min(FIT_VIEWS);
+    (0..k).map(|i| all[i * all.len() / k]).collect()
+}
+
+/// The fit per triangle of the renderer's bake mesh, from its input views (module comment).
+pub(super) fn fit(r: &mut Renderer) -> Result<Vec<[f32; 4]>> {
+    let mesh_tris = r.scene.geom.triangles.len();
+    let mut acc = vec![FitSums::default(); mesh_tris];
+    let lighting = Lighting {
+        intensities: vec![0.0; r.scene.lights.len()],
+        ..Default::default()
+    };
+    // Only the passes the sums need (no target mirror, no features).
+    let display_only = std::mem::replace(&mut r.display_only, true);
+    let res = gather(r, &lighting, &mut acc);
+    r.display_only = display_only;
+    res?;
+    Ok(pool(&r.scene.geom, &acc))
+}
+
+/// Renders the sums from the fit's input cameras into the triangles' sums.
+fn gather(r: &mut Renderer, lighting: &Lighting, acc: &mut [FitSums]) -> Result<()> {
+    for j in fit_views(r.scene.data.cameras.len(), r.exclude) {
+        let cam = at_width(&r.scene.data.cameras[j], FIT_WIDTH.min(r.scene.views.width));
+        r.render(&cam, lighting, Mode::Glossy, 1.0, None)?;
+        let b = r.buffers_ref().expect("a frame was rendered");
+        let npix = (b.width * b.height) as usize;
+        let sums: Vec<[f32; 4]> = b.glossy_sums.download_vec()?;
+        let gtri = b.gbuf.download()?.tri;
+        let (comp, irr): (_, Vec<[f32; 4]>) = (b.composites()?, b.irr.download_vec()?);
+        let sums = &sums[..glossy::SUM_PLANES * npix];
+        accumulate(acc, sums, &gtri[..npix], (&comp[..npix], &irr[..npix]));
+    }
+    Ok(())
+}
+
+impl Renderer {
+    /// Makes the view-dependent fit per surface for the views the frames use, unless it is
+    /// made or being made (its own renders come here too, and bind zeros meanwhile).
+    pub(super) fn ensure_glossy_fit(&mut self) -> Result<()> {
+        let made = self
+            .glossy_fit
+            .as_ref()
+            .is_some_and(|f| f.0 == self.exclude);
+        if made || self.fitting {
+            return Ok(());
+        }
+        self.refit_glossy().map(|_| ())
+    }
+
+    /// Makes the view-dependent fit per surface again (frame/glossy_fit.rs) and returns how long
+    /// it took: what a scene's first glossy frame adds (`relit bench frame` reports it).
+    pub fn refit_glossy(&mut self) -> Result<std::time::Duration> {
+        let t0 = std::time::Instant::now();
+        self.glossy_fit = None;
+        self.fitting = true;
+        let fit = fit(self);
+        self.fitting = false;
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let buf = Buffer::from_slice(&self.gpu, "glossy fit", usage, &fit?)?;
+        self.glossy_fit = Some((self.exclude, buf));
+        Ok(t0.elapsed())
+    }
+
+    /// The view-dependent fit per triangle the last glossy frame used (None before one).
+    pub fn glossy_fit(&self) -> Result<Option<Vec<[f32; 4]>>> {
+        (self.glossy_fit.as_ref())
+            .map(|f| f.1.download_vec())
+            .transpose()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Adds the quad `o + [0, 1]·u + [0, 1]·v` (two triangles, normal u × v) to `m`.
+    fn quad(m: &mut Mesh, o: Vec3, u: Vec3, v: Vec3) -> [usize; 2] {
+        let i = m.positions.len() as u32;
+        for p in [o, o + u, o + u + v, o + v] {
+            m.positions.push(p.to_array());
+        }
+        m.triangles.push([i, i + 1, i + 2]);
+        m.triangles.push([i, i + 2, i + 3]);
+        [m.triangles.len() - 2, m.triangles.len() - 1]
+    }
+
+    /// Sums of 100 pixels seen 10 times each, of pseudo-albedo `a`: lobe 2 with variance 100
+    /// and slope `s`, residual variance 1.
+    fn sums(s: f32, a: f32) -> FitSums {
+        FitSums {
+            xx: [0.0, 100.0, 0.0],
+            xi: [0.0, 100.0 * s, 0.0],
+            ii: 100.0 * s * s + 1.0,
+            samples: 1000.0,
+            pixels: 100.0,
+            albedo: Vec3::splat(100.0 * a),
+        }
+    }
+
+    fn empty() -> Mesh {
+        Mesh {
+            positions: Vec::new(),
+            colors: None,
+            triangles: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn one_patch_with_highlights_gives_its_strength_to_its_whole_surface() {
+        let mut m = empty();
+        let mut acc = Vec::new();
+        for i in 0..4 {
+            for j in 0..4 {
+                let o = Vec3::new(i as f32 * CELL + 0.01, 0.0, j as f32 * CELL + 0.01);
+                quad(&mut m, o, Vec3::Z * 0.2, Vec3::X * 0.2);
+                // Only the first quad's photos see a light in their lobes.
+                let s = if i + j == 0 {
+                    sums(0.3, 0.4)
+                } else {
+                    sums(0.0, 0.4)
+                };
+                let none = FitSums {
+                    xx: [0.0; 3],
+                    xi: [0.0; 3],
+                    ..s
+                };
+                acc.extend([if i + j == 0 { s } else { none }; 2]);
+            }
+        }
+        let fit = pool(&m, &acc);
+        for f in &fit {
+            assert!(
+                (f[1] - 0.3).abs() < 1e-3 && f[0] == 0.0 && f[2] == 0.0,
+                "{f:?}"
+            );
+            assert!(f[3] >= GLOSSY_REGION_T);
+        }
+    }
+
+    #[test]
+    fn another_material_on_the_same_plane_keeps_its_own_fit() {
+        let mut m = empty();
+        let mut acc = Vec::new();
+        // A wall (pseudo-albedo 0.2, its photos agree where a lobe predicts a highlight) with a
+        // mirror (0.9, strong highlights) beside it on the same plane.
+        for i in 0..4 {
+            let o = Vec3::new(0.0, 1.0, i as f32 * CELL + 0.01);
+            quad(&mut m, o, Vec3::Y * 0.2, Vec3::Z * 0.2);
+            let s = if i == 0 {
+                sums(0.3, 0.9)
+            } else {
+                sums(0.0, 0.2)
+            };
+            acc.extend([s; 2]);
+        }
+        let fit = pool(&m, &acc);
+        assert!((fit[0][1] - 0.3).abs() < 1e-3 && (fit[1][1] - 0.3).abs() < 1e-3);
+        for f in &fit[2..] {
+            assert_eq!(f[..3], [0.0; 3], "the wall takes none of the mirror's fit");
+        }
+    }
+
+    #[test]
+    fn the_t_threshold_decides() {
+        // t = s·√(Σxx·dof/residual) = s·√(100·899/1) ≈ 300·s against GLOSSY_REGION_T.
+        let t = |s: f32| s * (100.0f32 * 899.0).sqrt();
+        let (weak, strong) = (
+            0.5 * GLOSSY_REGION_T / t(1.0),
+            2.0 * GLOSSY_REGION_T / t(1.0),
+        );
+        assert_eq!(sums(weak, 0.3).strengths(), [0.0; 4]);
+        let f = sums(strong, 0.3).strengths();
+        assert!((f[1] - strong).abs() < 1e-4 && (f[3] - t(strong)).abs() < 0.05 * t(strong));
+    }
+}
