@@ -301,6 +301,10 @@ fn fit_views(n: usize, exclude: Option<u32>) -> Vec<usize> {
 /// The fit per triangle of the renderer's bake mesh, from its input views (module comment).
 pub(super) fn fit(r: &mut Renderer) -> Result<Vec<[f32; 4]>> {
     let mesh_tris = r.scene.geom.triangles.len();
+    if r.scene.originals.is_empty() {
+        // No declared original light: the sums are all zero, and so is the fit.
+        return Ok(vec![[0.0; 4]; mesh_tris]);
+    }
     let mut acc = vec![FitSums::default(); mesh_tris];
     let lighting = Lighting {
         intensities: vec![0.0; r.scene.lights.len()],
