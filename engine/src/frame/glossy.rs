@@ -373,12 +373,14 @@ pub fn reference(
             continue;
         };
         out[p] = [i1.x, i1.y, i1.z, 0.0];
-        // The pixel's own fit, else its surface's.
-        let own = (sums[2 * npix + p][1] != 0.0)
-            .then(|| strengths(r, sums, p))
-            .flatten();
+        // The surface's fit, else the pixel's own (`glossy.comp`'s order).
         let any = |w: &[f32; LOBES]| w.iter().any(|&v| v > 0.0);
-        let Some(mut w) = own.filter(any).or_else(|| fit.at(p)).filter(any) else {
+        let own = || {
+            (sums[2 * npix + p][1] != 0.0)
+                .then(|| strengths(r, sums, p))
+                .flatten()
+        };
+        let Some(mut w) = fit.at(p).filter(any).or_else(own).filter(any) else {
             continue;
         };
         // At most GLOSSY_SHARE of I_1's luminance is called view-dependent, and D stays at or
