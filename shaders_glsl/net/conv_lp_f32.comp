@@ -12,8 +12,8 @@
 //   not a per-lane loop with bounds checks), unconditionally at a clamped address and then
 //   selected (a conditional load becomes a branch and mask bookkeeping). The ROWS output rows
 //   share input rows between the vertical taps: each input row is gathered once per column tap.
-// - the OCN × ROWS accumulators spill (LANES_BLOCKING in conv.rs has the measurements); the
-//   spill traffic costs less than the gathers that more rows save.
+// - the OCN × ROWS accumulators spill (LANES_BLOCKING in conv/lanes.rs has the measurements);
+//   the spill traffic costs less than the gathers that more rows save.
 // Dispatch grid: (ceil(out_w / 8), ceil(out_h / (4 · ROWS)), ceil(out_c / OCN)).
 #extension GL_EXT_buffer_reference : require
 #extension GL_EXT_scalar_block_layout : require
@@ -41,7 +41,7 @@ layout(push_constant, scalar) uniform Push {
     uvec2 in_addr;        // input tensor (pack4, fp32)
     uvec2 out_addr;       // output tensor (pack4, fp32)
     uvec2 res_addr;       // residual tensor (output shape) when flags has RESIDUAL
-    uvec2 w_addr;         // weights, [OCN group][c4][tap][4 input channels][OCN] (conv.rs)
+    uvec2 w_addr;         // weights, [OCN group][c4][tap][4 input channels][OCN] (conv/mod.rs)
     uvec2 bias_addr;      // bias per output channel, padded to OCN
     uint in_w; uint in_h; uint in_c4;
     uint out_w; uint out_h; uint out_c;
