@@ -71,6 +71,161 @@ fn cstr_field(bytes: &[std::ffi::c_char]) -> String {
     String::from_utf8_lossy(&bytes).into_owned()
 }
 
+/// The feature structs `query_caps` reads, filled by one vkGetPhysicalDeviceFeatures2 (their
+/// `p_next` chains point into that call's frame: read the fields only).
+struct Features {
+    base: vk::PhysicalDeviceFeatures,
+    f11: vk::PhysicalDeviceVulkan11Features<'static>,
+    f12: vk::PhysicalDeviceVulkan12Features<'static>,
+    f13: vk::PhysicalDeviceVulkan13Features<'static>,
+    fas: vk::PhysicalDeviceAccelerationStructureFeaturesKHR<'static>,
+    frq: vk::PhysicalDeviceRayQueryFeaturesKHR<'static>,
+}
+
+/// The device's features; the acceleration-structure and ray-query ones only where the device
+/// has those extensions (otherwise they read as absent).
+fn query_features(
+    instance: &ash::Instance,
+    pd: vk::PhysicalDevice,
+    has_as: bool,
+    has_rq: bool,
+) -> Features {
+    let mut f11 = vk::PhysicalDeviceVulkan11Features::default();
+    let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
+    let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
+    let mut fas = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default();
+    let mut frq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
+    let mut f2 = vk::PhysicalDeviceFeatures2::default()
+        .push_next(&mut f11)
+        .push_next(&mut f12)
+        .push_next(&mut f13);
+    if has_as {
+        f2 = f2.push_next(&mut fas);
+    }
+    if has_rq {
+        f2 = f2.push_next(&mut frq);
+    }
+    unsafe { instance.get_physical_device_features2(pd, &mut f2) };
+    let base = f2.features;
+    Features {
+        base,
+        f11,
+        f12,
+        f13,
+        fas,
+        frq,
+    }
+}
+
+/// The property structs `query_caps` reads, filled by one vkGetPhysicalDeviceProperties2 (their
+/// `p_next` chains point into that call's frame: read the fields only).
+struct Properties {
+    props: vk::PhysicalDeviceProperties,
+    p11: vk::PhysicalDeviceVulkan11Properties<'static>,
+    drv: vk::PhysicalDeviceDriverProperties<'static>,
+    pas: vk::PhysicalDeviceAccelerationStructurePropertiesKHR<'static>,
+}
+
+/// The device's properties; the acceleration-structure ones only where it has the extension.
+fn query_properties(instance: &ash::Instance, pd: vk::PhysicalDevice, has_as: bool) -> Properties {
+    let mut pas = vk::PhysicalDeviceAccelerationStructurePropertiesKHR::default();
+    let mut p11 = vk::PhysicalDeviceVulkan11Properties::default();
+    let mut drv = vk::PhysicalDeviceDriverProperties::default();
+    let mut p2 = vk::PhysicalDeviceProperties2::default()
+        .push_next(&mut p11)
+        .push_next(&mut drv);
+    if has_as {
+        p2 = p2.push_next(&mut pas);
+    }
+    unsafe { instance.get_physical_device_properties2(pd, &mut p2) };
+    let props = p2.properties;
+    Properties {
+        props,
+        p11,
+        drv,
+        pas,
+    }
+}
+
+/// The features and extensions Relit cannot run without, each with whether the device has it
+/// (`Caps::required`; `Caps::missing` names the absent ones).
+fn required_table(
+    props: &vk::PhysicalDeviceProperties,
+    f: &Features,
+    has_ext: &dyn Fn(&CStr) -> bool,
+    qf: &[vk::QueueFamilyProperties],
+) -> Vec<(&'static str, bool)> {
+    let has_as = has_ext(ash::khr::acceleration_structure::NAME);
+    let has_rq = has_ext(ash::khr::ray_query::NAME);
+    vec![
+        ("Vulkan 1.3", props.api_version >= vk::API_VERSION_1_3),
+        (
+            "VK_KHR_acceleration_structure",
+            has_as && f.fas.acceleration_structure == vk::TRUE,
+        ),
+        (
+            "VK_KHR_ray_query (ray query)",
+            has_rq && f.frq.ray_query == vk::TRUE,
+        ),
+        (
+            "VK_KHR_deferred_host_operations",
+            has_ext(ash::khr::deferred_host_operations::NAME),
+        ),
+        (
+            "VK_KHR_push_descriptor",
+            has_ext(ash::khr::push_descriptor::NAME),
+        ),
+        (
+            "bufferDeviceAddress",
+            f.f12.buffer_device_address == vk::TRUE,
+        ),
+        (
+            "storageBuffer16BitAccess",
+            f.f11.storage_buffer16_bit_access == vk::TRUE,
+        ),
+        ("shaderFloat16", f.f12.shader_float16 == vk::TRUE),
+        ("synchronization2", f.f13.synchronization2 == vk::TRUE),
+        ("dynamicRendering", f.f13.dynamic_rendering == vk::TRUE),
+        ("scalarBlockLayout", f.f12.scalar_block_layout == vk::TRUE),
+        (
+            "graphics+compute queue",
+            qf.iter().any(|q| {
+                q.queue_flags
+                    .contains(vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS)
+            }),
+        ),
+    ]
+}
+
+/// The cooperative-matrix shapes the device offers (none without VK_KHR_cooperative_matrix or
+/// when the query fails).
+fn coop_matrix_shapes(
+    entry: &ash::Entry,
+    instance: &ash::Instance,
+    pd: vk::PhysicalDevice,
+    has_cm: bool,
+) -> Vec<CoopMatrixShape> {
+    let mut coop_matrix = Vec::new();
+    if has_cm {
+        let cm = ash::khr::cooperative_matrix::Instance::new(entry, instance);
+        if let Ok(list) = unsafe { cm.get_physical_device_cooperative_matrix_properties(pd) } {
+            for p in list {
+                coop_matrix.push(CoopMatrixShape {
+                    m: p.m_size,
+                    n: p.n_size,
+                    k: p.k_size,
+                    a: p.a_type,
+                    b: p.b_type,
+                    c: p.c_type,
+                    result: p.result_type,
+                    scope: p.scope,
+                });
+            }
+        }
+    }
+    coop_matrix
+}
+
 /// Reads the capabilities of one physical device.
 pub(super) fn query_caps(
     entry: &ash::Entry,
@@ -83,37 +238,15 @@ pub(super) fn query_caps(
             .vk("enumerate device extensions")?;
         let has_ext = |name: &CStr| exts.iter().any(|e| e.extension_name_as_c_str() == Ok(name));
 
-        let mut f11 = vk::PhysicalDeviceVulkan11Features::default();
-        let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
-        let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
-        let mut fas = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default();
-        let mut frq = vk::PhysicalDeviceRayQueryFeaturesKHR::default();
         let has_as = has_ext(ash::khr::acceleration_structure::NAME);
         let has_rq = has_ext(ash::khr::ray_query::NAME);
-        let mut f2 = vk::PhysicalDeviceFeatures2::default()
-            .push_next(&mut f11)
-            .push_next(&mut f12)
-            .push_next(&mut f13);
-        if has_as {
-            f2 = f2.push_next(&mut fas);
-        }
-        if has_rq {
-            f2 = f2.push_next(&mut frq);
-        }
-        instance.get_physical_device_features2(pd, &mut f2);
-        let base = f2.features;
-
-        let mut pas = vk::PhysicalDeviceAccelerationStructurePropertiesKHR::default();
-        let mut p11 = vk::PhysicalDeviceVulkan11Properties::default();
-        let mut drv = vk::PhysicalDeviceDriverProperties::default();
-        let mut p2 = vk::PhysicalDeviceProperties2::default()
-            .push_next(&mut p11)
-            .push_next(&mut drv);
-        if has_as {
-            p2 = p2.push_next(&mut pas);
-        }
-        instance.get_physical_device_properties2(pd, &mut p2);
-        let props = p2.properties;
+        let features = query_features(instance, pd, has_as, has_rq);
+        let Properties {
+            props,
+            p11,
+            drv,
+            pas,
+        } = query_properties(instance, pd, has_as);
         let limits = props.limits;
 
         let qf = instance.get_physical_device_queue_family_properties(pd);
@@ -126,43 +259,9 @@ pub(super) fn query_caps(
             .map(|q| q.timestamp_valid_bits)
             .unwrap_or(0);
 
-        let required = vec![
-            ("Vulkan 1.3", props.api_version >= vk::API_VERSION_1_3),
-            (
-                "VK_KHR_acceleration_structure",
-                has_as && fas.acceleration_structure == vk::TRUE,
-            ),
-            (
-                "VK_KHR_ray_query (ray query)",
-                has_rq && frq.ray_query == vk::TRUE,
-            ),
-            (
-                "VK_KHR_deferred_host_operations",
-                has_ext(ash::khr::deferred_host_operations::NAME),
-            ),
-            (
-                "VK_KHR_push_descriptor",
-                has_ext(ash::khr::push_descriptor::NAME),
-            ),
-            ("bufferDeviceAddress", f12.buffer_device_address == vk::TRUE),
-            (
-                "storageBuffer16BitAccess",
-                f11.storage_buffer16_bit_access == vk::TRUE,
-            ),
-            ("shaderFloat16", f12.shader_float16 == vk::TRUE),
-            ("synchronization2", f13.synchronization2 == vk::TRUE),
-            ("dynamicRendering", f13.dynamic_rendering == vk::TRUE),
-            ("scalarBlockLayout", f12.scalar_block_layout == vk::TRUE),
-            (
-                "graphics+compute queue",
-                qf.iter().any(|q| {
-                    q.queue_flags
-                        .contains(vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS)
-                }),
-            ),
-        ];
+        let required = required_table(&props, &features, &has_ext, &qf);
 
-        let bc_compression = base.texture_compression_bc == vk::TRUE;
+        let bc_compression = features.base.texture_compression_bc == vk::TRUE;
         let fmt = instance.get_physical_device_format_properties(pd, vk::Format::BC6H_UFLOAT_BLOCK);
         let bc6h_sampled_linear = bc_compression
             && fmt.optimal_tiling_features.contains(
@@ -170,24 +269,8 @@ pub(super) fn query_caps(
                     | vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_LINEAR,
             );
 
-        let mut coop_matrix = Vec::new();
-        if has_ext(ash::khr::cooperative_matrix::NAME) {
-            let cm = ash::khr::cooperative_matrix::Instance::new(entry, instance);
-            if let Ok(list) = cm.get_physical_device_cooperative_matrix_properties(pd) {
-                for p in list {
-                    coop_matrix.push(CoopMatrixShape {
-                        m: p.m_size,
-                        n: p.n_size,
-                        k: p.k_size,
-                        a: p.a_type,
-                        b: p.b_type,
-                        c: p.c_type,
-                        result: p.result_type,
-                        scope: p.scope,
-                    });
-                }
-            }
-        }
+        let has_cm = has_ext(ash::khr::cooperative_matrix::NAME);
+        let coop_matrix = coop_matrix_shapes(entry, instance, pd, has_cm);
 
         let mem = instance.get_physical_device_memory_properties(pd);
         let memory_types = mem.memory_types[..mem.memory_type_count as usize]
@@ -204,7 +287,7 @@ pub(super) fn query_caps(
             required,
             bc_compression,
             bc6h_sampled_linear,
-            vulkan_memory_model: f12.vulkan_memory_model == vk::TRUE,
+            vulkan_memory_model: features.f12.vulkan_memory_model == vk::TRUE,
             coop_matrix,
             subgroup_size: p11.subgroup_size,
             subgroup_broadcast: p11

@@ -86,7 +86,7 @@ pub struct Gpu {
     pub push_desc: ash::khr::push_descriptor::Device,
     pub(crate) allocator: Mutex<Option<Allocator>>,
     pub(crate) cmd_pool: Mutex<vk::CommandPool>,
-    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    debug: Option<Messenger>,
     /// Counts validation errors; boxed so its address (the messenger's user data) is stable.
     validation_errors: Box<AtomicU32>,
     validation: bool,
@@ -172,6 +172,200 @@ fn create_instance(
     unsafe { entry.create_instance(&info, None) }.vk("create instance")
 }
 
+/// The validation messenger and the extension functions that destroy it.
+type Messenger = (ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT);
+
+/// Routes validation errors and warnings to `debug_callback`, which counts errors in `errors`.
+fn create_messenger(
+    entry: &ash::Entry,
+    instance: &ash::Instance,
+    errors: &AtomicU32,
+) -> Result<Messenger> {
+    let du = ash::ext::debug_utils::Instance::new(entry, instance);
+    let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+        .message_severity(
+            vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
+        )
+        .message_type(
+            vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE
+                | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL,
+        )
+        .pfn_user_callback(Some(debug_callback))
+        .user_data(errors as *const AtomicU32 as *mut c_void);
+    let m = unsafe { du.create_debug_utils_messenger(&info, None) }.vk("create debug messenger")?;
+    Ok((du, m))
+}
+
+/// Destroys the messenger and the instance: `Gpu::new` failed after creating them.
+fn tear_down(instance: &ash::Instance, debug: &Option<Messenger>) {
+    unsafe {
+        if let Some((du, m)) = debug {
+            du.destroy_debug_utils_messenger(*m, None);
+        }
+        instance.destroy_instance(None);
+    }
+}
+
+/// The device `choice` names, or the best one that has everything; errors say what is missing.
+fn pick_device(
+    entry: &ash::Entry,
+    instance: &ash::Instance,
+    choice: &DeviceChoice,
+) -> Result<(vk::PhysicalDevice, Caps)> {
+    let pds = unsafe { instance.enumerate_physical_devices() }.vk("enumerate devices")?;
+    if pds.is_empty() {
+        return Err(Error::Device(
+            "no Vulkan device found; install Mesa's lavapipe (tools/setup.sh)".into(),
+        ));
+    }
+    let mut all = Vec::new();
+    for &pd in &pds {
+        all.push((pd, query_caps(entry, instance, pd)?));
+    }
+    let describe = |c: &Caps| {
+        let m = c.missing();
+        if m.is_empty() {
+            format!("{}: has everything", c.name)
+        } else {
+            format!("{}: missing {}", c.name, m.join(", "))
+        }
+    };
+    match chosen_device(&all, choice)? {
+        Some((pd, caps)) if caps.missing().is_empty() => Ok((pd, caps)),
+        Some((_, caps)) => Err(Error::Device(format!(
+            "device \"{}\" cannot run Relit; missing: {}",
+            caps.name,
+            caps.missing().join(", ")
+        ))),
+        None => Err(Error::Device(format!(
+            "no Vulkan device has what Relit needs ({}); on Debian 12 install \
+             mesa-vulkan-drivers >= 24.1 from bookworm-backports (tools/setup.sh)",
+            all.iter()
+                .map(|(_, c)| describe(c))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ))),
+    }
+}
+
+/// The device `choice` names among `all` (an error when none matches), or for `Auto` the most
+/// capable type that has everything (`None` when no device does).
+fn chosen_device(
+    all: &[(vk::PhysicalDevice, Caps)],
+    choice: &DeviceChoice,
+) -> Result<Option<(vk::PhysicalDevice, Caps)>> {
+    Ok(match choice {
+        DeviceChoice::Index(i) => Some(all.get(*i).cloned().ok_or_else(|| {
+            Error::Device(format!(
+                "device index {i} out of range: {} device(s) present",
+                all.len()
+            ))
+        })?),
+        DeviceChoice::Name(n) => Some(
+            all.iter()
+                .find(|(_, c)| c.name.to_lowercase().contains(&n.to_lowercase()))
+                .cloned()
+                .ok_or_else(|| {
+                    Error::Device(format!(
+                        "no device name contains \"{n}\"; present: {}",
+                        all.iter()
+                            .map(|(_, c)| c.name.clone())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ))
+                })?,
+        ),
+        DeviceChoice::Auto => all
+            .iter()
+            .filter(|(_, c)| c.missing().is_empty())
+            .min_by_key(|(_, c)| type_rank(c.device_type))
+            .cloned(),
+    })
+}
+
+/// The first queue family that does graphics and compute (family 0 when none does).
+fn graphics_compute_family(instance: &ash::Instance, pdevice: vk::PhysicalDevice) -> u32 {
+    let qf = unsafe { instance.get_physical_device_queue_family_properties(pdevice) };
+    qf.iter()
+        .position(|q| {
+            q.queue_flags
+                .contains(vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS)
+        })
+        .unwrap_or(0) as u32
+}
+
+/// The logical device with the required extensions and features, cooperative matrices when
+/// the device has them, and the swapchain when asked for.
+fn create_device(
+    instance: &ash::Instance,
+    pdevice: vk::PhysicalDevice,
+    caps: &Caps,
+    queue_family: u32,
+    swapchain: bool,
+) -> std::result::Result<ash::Device, vk::Result> {
+    let mut ext_names: Vec<*const std::ffi::c_char> =
+        REQUIRED_EXTENSIONS.iter().map(|e| e.as_ptr()).collect();
+    if !caps.coop_matrix.is_empty() {
+        ext_names.push(ash::khr::cooperative_matrix::NAME.as_ptr());
+    }
+    if swapchain {
+        ext_names.push(ash::khr::swapchain::NAME.as_ptr());
+    }
+    let mut f11 = vk::PhysicalDeviceVulkan11Features::default().storage_buffer16_bit_access(true);
+    let mut f12 = vk::PhysicalDeviceVulkan12Features::default()
+        .buffer_device_address(true)
+        .shader_float16(true)
+        .scalar_block_layout(true)
+        .host_query_reset(true)
+        .vulkan_memory_model(caps.vulkan_memory_model);
+    // maintenance4 (mandatory in 1.3): the `*_cm.comp` kernels size their workgroup to the
+    // subgroup with a specialization constant (LocalSizeId).
+    let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
+        .synchronization2(true)
+        .dynamic_rendering(true)
+        .maintenance4(true);
+    let mut fas =
+        vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
+    let mut frq = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
+    let mut fcm =
+        vk::PhysicalDeviceCooperativeMatrixFeaturesKHR::default().cooperative_matrix(true);
+    let base = vk::PhysicalDeviceFeatures::default()
+        .texture_compression_bc(caps.bc_compression)
+        .shader_int64(false);
+    let prio = [1.0f32];
+    let qinfo = [vk::DeviceQueueCreateInfo::default()
+        .queue_family_index(queue_family)
+        .queue_priorities(&prio)];
+    let mut dinfo = vk::DeviceCreateInfo::default()
+        .queue_create_infos(&qinfo)
+        .enabled_extension_names(&ext_names)
+        .enabled_features(&base)
+        .push_next(&mut f11)
+        .push_next(&mut f12)
+        .push_next(&mut f13)
+        .push_next(&mut fas)
+        .push_next(&mut frq);
+    if !caps.coop_matrix.is_empty() {
+        dinfo = dinfo.push_next(&mut fcm);
+    }
+    unsafe { instance.create_device(pdevice, &dinfo, None) }
+}
+
+/// A command pool on `queue_family` whose buffers can be reset one by one.
+fn create_cmd_pool(device: &ash::Device, queue_family: u32) -> Result<vk::CommandPool> {
+    unsafe {
+        device.create_command_pool(
+            &vk::CommandPoolCreateInfo::default()
+                .queue_family_index(queue_family)
+                .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+            None,
+        )
+    }
+    .vk("create command pool")
+}
+
 impl Gpu {
     pub fn new(opts: &GpuOptions) -> Result<std::sync::Arc<Gpu>> {
         let entry = load_entry()?;
@@ -185,168 +379,24 @@ impl Gpu {
         let instance = create_instance(&entry, opts.validation, &opts.instance_extensions)?;
         let validation_errors = Box::new(AtomicU32::new(0));
         let debug = if opts.validation {
-            let du = ash::ext::debug_utils::Instance::new(&entry, &instance);
-            let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
-                .message_severity(
-                    vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
-                        | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
-                )
-                .message_type(
-                    vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                        | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE
-                        | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL,
-                )
-                .pfn_user_callback(Some(debug_callback))
-                .user_data(&*validation_errors as *const AtomicU32 as *mut c_void);
-            let m = unsafe { du.create_debug_utils_messenger(&info, None) }
-                .vk("create debug messenger")?;
-            Some((du, m))
+            Some(create_messenger(&entry, &instance, &validation_errors)?)
         } else {
             None
         };
 
-        // From here on, failures must tear down what exists: do it in one place.
-        let fail = |instance: &ash::Instance,
-                    debug: &Option<(
-            ash::ext::debug_utils::Instance,
-            vk::DebugUtilsMessengerEXT,
-        )>| unsafe {
-            if let Some((du, m)) = debug {
-                du.destroy_debug_utils_messenger(*m, None);
-            }
-            instance.destroy_instance(None);
-        };
-
-        let picked = (|| -> Result<(vk::PhysicalDevice, Caps)> {
-            let pds = unsafe { instance.enumerate_physical_devices() }.vk("enumerate devices")?;
-            if pds.is_empty() {
-                return Err(Error::Device(
-                    "no Vulkan device found; install Mesa's lavapipe (tools/setup.sh)".into(),
-                ));
-            }
-            let mut all = Vec::new();
-            for &pd in &pds {
-                all.push((pd, query_caps(&entry, &instance, pd)?));
-            }
-            let describe = |c: &Caps| {
-                let m = c.missing();
-                if m.is_empty() {
-                    format!("{}: has everything", c.name)
-                } else {
-                    format!("{}: missing {}", c.name, m.join(", "))
-                }
-            };
-            let chosen = match &opts.device {
-                DeviceChoice::Index(i) => Some(all.get(*i).cloned().ok_or_else(|| {
-                    Error::Device(format!(
-                        "device index {i} out of range: {} device(s) present",
-                        all.len()
-                    ))
-                })?),
-                DeviceChoice::Name(n) => Some(
-                    all.iter()
-                        .find(|(_, c)| c.name.to_lowercase().contains(&n.to_lowercase()))
-                        .cloned()
-                        .ok_or_else(|| {
-                            Error::Device(format!(
-                                "no device name contains \"{n}\"; present: {}",
-                                all.iter()
-                                    .map(|(_, c)| c.name.clone())
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            ))
-                        })?,
-                ),
-                DeviceChoice::Auto => all
-                    .iter()
-                    .filter(|(_, c)| c.missing().is_empty())
-                    .min_by_key(|(_, c)| type_rank(c.device_type))
-                    .cloned(),
-            };
-            match chosen {
-                Some((pd, caps)) if caps.missing().is_empty() => Ok((pd, caps)),
-                Some((_, caps)) => Err(Error::Device(format!(
-                    "device \"{}\" cannot run Relit; missing: {}",
-                    caps.name,
-                    caps.missing().join(", ")
-                ))),
-                None => Err(Error::Device(format!(
-                    "no Vulkan device has what Relit needs ({}); on Debian 12 install \
-                     mesa-vulkan-drivers >= 24.1 from bookworm-backports (tools/setup.sh)",
-                    all.iter()
-                        .map(|(_, c)| describe(c))
-                        .collect::<Vec<_>>()
-                        .join("; ")
-                ))),
-            }
-        })();
-        let (pdevice, caps) = match picked {
+        // From here on, failures must tear down what exists.
+        let (pdevice, caps) = match pick_device(&entry, &instance, &opts.device) {
             Ok(p) => p,
             Err(e) => {
-                fail(&instance, &debug);
+                tear_down(&instance, &debug);
                 return Err(e);
             }
         };
-
-        let qf = unsafe { instance.get_physical_device_queue_family_properties(pdevice) };
-        let queue_family = qf
-            .iter()
-            .position(|q| {
-                q.queue_flags
-                    .contains(vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS)
-            })
-            .unwrap_or(0) as u32;
-
-        let mut ext_names: Vec<*const std::ffi::c_char> =
-            REQUIRED_EXTENSIONS.iter().map(|e| e.as_ptr()).collect();
-        if !caps.coop_matrix.is_empty() {
-            ext_names.push(ash::khr::cooperative_matrix::NAME.as_ptr());
-        }
-        if opts.swapchain {
-            ext_names.push(ash::khr::swapchain::NAME.as_ptr());
-        }
-        let mut f11 =
-            vk::PhysicalDeviceVulkan11Features::default().storage_buffer16_bit_access(true);
-        let mut f12 = vk::PhysicalDeviceVulkan12Features::default()
-            .buffer_device_address(true)
-            .shader_float16(true)
-            .scalar_block_layout(true)
-            .host_query_reset(true)
-            .vulkan_memory_model(caps.vulkan_memory_model);
-        // maintenance4 (mandatory in 1.3): the `*_cm.comp` kernels size their workgroup to the
-        // subgroup with a specialization constant (LocalSizeId).
-        let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
-            .synchronization2(true)
-            .dynamic_rendering(true)
-            .maintenance4(true);
-        let mut fas = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default()
-            .acceleration_structure(true);
-        let mut frq = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
-        let mut fcm =
-            vk::PhysicalDeviceCooperativeMatrixFeaturesKHR::default().cooperative_matrix(true);
-        let base = vk::PhysicalDeviceFeatures::default()
-            .texture_compression_bc(caps.bc_compression)
-            .shader_int64(false);
-        let prio = [1.0f32];
-        let qinfo = [vk::DeviceQueueCreateInfo::default()
-            .queue_family_index(queue_family)
-            .queue_priorities(&prio)];
-        let mut dinfo = vk::DeviceCreateInfo::default()
-            .queue_create_infos(&qinfo)
-            .enabled_extension_names(&ext_names)
-            .enabled_features(&base)
-            .push_next(&mut f11)
-            .push_next(&mut f12)
-            .push_next(&mut f13)
-            .push_next(&mut fas)
-            .push_next(&mut frq);
-        if !caps.coop_matrix.is_empty() {
-            dinfo = dinfo.push_next(&mut fcm);
-        }
-        let device = match unsafe { instance.create_device(pdevice, &dinfo, None) } {
+        let queue_family = graphics_compute_family(&instance, pdevice);
+        let device = match create_device(&instance, pdevice, &caps, queue_family, opts.swapchain) {
             Ok(d) => d,
             Err(e) => {
-                fail(&instance, &debug);
+                tear_down(&instance, &debug);
                 return Err(Error::Vk {
                     what: "create device",
                     result: e,
@@ -365,15 +415,7 @@ impl Gpu {
             buffer_device_address: true,
             allocation_sizes: Default::default(),
         })?;
-        let cmd_pool = unsafe {
-            device.create_command_pool(
-                &vk::CommandPoolCreateInfo::default()
-                    .queue_family_index(queue_family)
-                    .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
-                None,
-            )
-        }
-        .vk("create command pool")?;
+        let cmd_pool = create_cmd_pool(&device, queue_family)?;
 
         Ok(std::sync::Arc::new(Gpu {
             entry,
