@@ -362,6 +362,46 @@ fn load_ply(path: &Path) -> Result<Mesh> {
     if body_start < data.len() && data[body_start] == b'\n' {
         body_start += 1;
     }
+    let (binary, elements) = parse_ply_header(path, &header)?;
+    let body = &data[body_start.min(data.len())..];
+    let text;
+    let mut reader = if binary {
+        PlyReader::Binary { data: body, pos: 0 }
+    } else {
+        text = String::from_utf8_lossy(body);
+        PlyReader::Ascii(text.split_ascii_whitespace())
+    };
+    check_ply_size(path, &elements, binary, body.len())?;
+    let declared = elements
+        .iter()
+        .map(|e| {
+            let props: Vec<&str> = e.props.iter().map(|p| p.name.as_str()).collect();
+            format!("{} {} ({})", e.count, e.name, props.join(" "))
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
+    let mut mesh = Mesh::default();
+    // An element without properties has nothing to read, whatever its count.
+    for e in elements
+        .iter()
+        .filter(|e| !e.props.is_empty() || e.name == "vertex")
+    {
+        read_ply_element(path, e, &mut reader, &declared, &mut mesh)?;
+    }
+    if let PlyReader::Ascii(mut it) = reader {
+        if it.next().is_some() {
+            return Err(bad(
+                "more data than the header declares (element counts are wrong)".into(),
+            ));
+        }
+    }
+    Ok(mesh)
+}
+
+/// The PLY header's lines after `end_header` is cut off: whether the body is binary, and the
+/// elements with their properties.
+fn parse_ply_header(path: &Path, header: &str) -> Result<(bool, Vec<PlyElement>)> {
+    let bad = |m: String| Error::input(path, m);
     let mut lines = header.lines();
     if lines.next().map(str::trim) != Some("ply") {
         return Err(bad("not a PLY file: the first line must be \"ply\"".into()));
@@ -407,16 +447,12 @@ fn load_ply(path: &Path) -> Result<Mesh> {
         }
     }
     let binary = binary.ok_or_else(|| bad("PLY header has no format line".into()))?;
-    let body = &data[body_start.min(data.len())..];
-    let text;
-    let mut reader = if binary {
-        PlyReader::Binary { data: body, pos: 0 }
-    } else {
-        text = String::from_utf8_lossy(body);
-        PlyReader::Ascii(text.split_ascii_whitespace())
-    };
-    // Guard against absurd counts before allocating or looping: every value takes at least
-    // one byte in binary and one character plus a separator in ASCII.
+    Ok((binary, elements))
+}
+
+/// Guards against absurd counts before allocating or looping: every value takes at least one
+/// byte in binary and one character plus a separator in ASCII.
+fn check_ply_size(path: &Path, elements: &[PlyElement], binary: bool, body: usize) -> Result<()> {
     let min_values: usize = elements
         .iter()
         .map(|e| e.count.saturating_mul(e.props.len()))
@@ -426,123 +462,130 @@ fn load_ply(path: &Path) -> Result<Mesh> {
     } else {
         min_values.saturating_mul(2).saturating_sub(1)
     };
-    if min_bytes > body.len() {
+    if min_bytes > body {
+        return Err(Error::input(
+            path,
+            format!(
+                "header declares {} but the file has only {} bytes of data",
+                elements
+                    .iter()
+                    .map(|e| format!("{} {}", e.count, e.name))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                body
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Reads element `e`'s records into `mesh`: vertex positions and colours, and faces fanned into
+/// triangles. `declared` (the header's elements) explains a face too short to be one.
+fn read_ply_element(
+    path: &Path,
+    e: &PlyElement,
+    reader: &mut PlyReader,
+    declared: &str,
+    mesh: &mut Mesh,
+) -> Result<()> {
+    let bad = |m: String| Error::input(path, m);
+    let idx = |n: &str| e.props.iter().position(|p| p.name == n);
+    let is_vertex = e.name == "vertex";
+    let is_face = e.name == "face";
+    let (xi, yi, zi) = (idx("x"), idx("y"), idx("z"));
+    let (ri, gi, bi) = (idx("red"), idx("green"), idx("blue"));
+    if is_vertex && (xi.is_none() || yi.is_none() || zi.is_none()) {
+        return Err(bad("vertex element lacks x, y or z".into()));
+    }
+    let fi = idx("vertex_indices").or_else(|| idx("vertex_index"));
+    if is_vertex {
+        mesh.positions.reserve(e.count.min(1 << 26));
+    }
+    let mut colors = Vec::new();
+    for i in 0..e.count {
+        let mut vals = [0f64; 3];
+        let mut col = [0f64; 3];
+        for (pi, p) in e.props.iter().enumerate() {
+            let truncated = |m: Misread| match m {
+                Misread::End => bad(format!(
+                    "file ends inside {} {i} of {} (header declares {})",
+                    e.name, e.count, e.count
+                )),
+                Misread::NotA(ty, tok) => bad(format!(
+                    "{} {i}: property {} is \"{tok}\", not of its type {}",
+                    e.name,
+                    p.name,
+                    ty.name()
+                )),
+            };
+            if let Some(ct) = p.list {
+                let n = reader.next(ct).map_err(truncated)? as usize;
+                let mut poly = Vec::with_capacity(n.min(64));
+                for _ in 0..n {
+                    poly.push(reader.next(p.ty).map_err(truncated)?);
+                }
+                if is_face && Some(pi) == fi {
+                    fan_ply_face(path, i, &poly, declared, &mut mesh.triangles)?;
+                }
+            } else {
+                let v = reader.next(p.ty).map_err(truncated)?;
+                if Some(pi) == xi {
+                    vals[0] = v
+                } else if Some(pi) == yi {
+                    vals[1] = v
+                } else if Some(pi) == zi {
+                    vals[2] = v
+                } else if Some(pi) == ri {
+                    col[0] = v
+                } else if Some(pi) == gi {
+                    col[1] = v
+                } else if Some(pi) == bi {
+                    col[2] = v
+                }
+            }
+        }
+        if is_vertex {
+            mesh.positions.push(vals.map(|v| v as f32));
+            if let Some(ri) = ri {
+                // 8-bit colours are sRGB-encoded 0..255; float ones are taken as 0..1.
+                let scale = if e.props[ri].ty == PlyType::U8 {
+                    255.0
+                } else {
+                    1.0
+                };
+                colors.push(col.map(|c| crate::scene::image::srgb_to_linear((c / scale) as f32)));
+            }
+        }
+    }
+    if is_vertex && !colors.is_empty() {
+        mesh.colors = Some(colors);
+    }
+    Ok(())
+}
+
+/// Face `i`'s vertex indices `poly` as a triangle fan, appended to `triangles`.
+fn fan_ply_face(
+    path: &Path,
+    i: usize,
+    poly: &[f64],
+    declared: &str,
+    triangles: &mut Vec<[u32; 3]>,
+) -> Result<()> {
+    let bad = |m: String| Error::input(path, m);
+    let n = poly.len();
+    if n < 3 {
         return Err(bad(format!(
-            "header declares {} but the file has only {} bytes of data",
-            elements
-                .iter()
-                .map(|e| format!("{} {}", e.count, e.name))
-                .collect::<Vec<_>>()
-                .join(", "),
-            body.len()
+            "face {i} has {n} vertices; at least 3 needed (if the faces \
+             do have 3 or more, the header's counts or property types do \
+             not match the data; it declares {declared})"
         )));
     }
-    let declared = elements
-        .iter()
-        .map(|e| {
-            let props: Vec<&str> = e.props.iter().map(|p| p.name.as_str()).collect();
-            format!("{} {} ({})", e.count, e.name, props.join(" "))
-        })
-        .collect::<Vec<_>>()
-        .join(", ");
-    let mut mesh = Mesh::default();
-    // An element without properties has nothing to read, whatever its count.
-    for e in elements
-        .iter()
-        .filter(|e| !e.props.is_empty() || e.name == "vertex")
-    {
-        let idx = |n: &str| e.props.iter().position(|p| p.name == n);
-        let is_vertex = e.name == "vertex";
-        let is_face = e.name == "face";
-        let (xi, yi, zi) = (idx("x"), idx("y"), idx("z"));
-        let (ri, gi, bi) = (idx("red"), idx("green"), idx("blue"));
-        if is_vertex && (xi.is_none() || yi.is_none() || zi.is_none()) {
-            return Err(bad("vertex element lacks x, y or z".into()));
+    for k in 1..n - 1 {
+        let tri = [poly[0], poly[k], poly[k + 1]];
+        if tri.iter().any(|&v| v < 0.0) {
+            return Err(bad(format!("face {i} has a negative vertex index")));
         }
-        let fi = idx("vertex_indices").or_else(|| idx("vertex_index"));
-        if is_vertex {
-            mesh.positions.reserve(e.count.min(1 << 26));
-        }
-        let mut colors = Vec::new();
-        for i in 0..e.count {
-            let mut vals = [0f64; 3];
-            let mut col = [0f64; 3];
-            for (pi, p) in e.props.iter().enumerate() {
-                let truncated = |m: Misread| match m {
-                    Misread::End => bad(format!(
-                        "file ends inside {} {i} of {} (header declares {})",
-                        e.name, e.count, e.count
-                    )),
-                    Misread::NotA(ty, tok) => bad(format!(
-                        "{} {i}: property {} is \"{tok}\", not of its type {}",
-                        e.name,
-                        p.name,
-                        ty.name()
-                    )),
-                };
-                if let Some(ct) = p.list {
-                    let n = reader.next(ct).map_err(truncated)? as usize;
-                    let mut poly = Vec::with_capacity(n.min(64));
-                    for _ in 0..n {
-                        poly.push(reader.next(p.ty).map_err(truncated)?);
-                    }
-                    if is_face && Some(pi) == fi {
-                        if n < 3 {
-                            return Err(bad(format!(
-                                "face {i} has {n} vertices; at least 3 needed (if the faces \
-                                 do have 3 or more, the header's counts or property types do \
-                                 not match the data; it declares {declared})"
-                            )));
-                        }
-                        for k in 1..n - 1 {
-                            let tri = [poly[0], poly[k], poly[k + 1]];
-                            if tri.iter().any(|&v| v < 0.0) {
-                                return Err(bad(format!("face {i} has a negative vertex index")));
-                            }
-                            mesh.triangles.push(tri.map(|v| v as u32));
-                        }
-                    }
-                } else {
-                    let v = reader.next(p.ty).map_err(truncated)?;
-                    if Some(pi) == xi {
-                        vals[0] = v
-                    } else if Some(pi) == yi {
-                        vals[1] = v
-                    } else if Some(pi) == zi {
-                        vals[2] = v
-                    } else if Some(pi) == ri {
-                        col[0] = v
-                    } else if Some(pi) == gi {
-                        col[1] = v
-                    } else if Some(pi) == bi {
-                        col[2] = v
-                    }
-                }
-            }
-            if is_vertex {
-                mesh.positions.push(vals.map(|v| v as f32));
-                if let Some(ri) = ri {
-                    // 8-bit colours are sRGB-encoded 0..255; float ones are taken as 0..1.
-                    let scale = if e.props[ri].ty == PlyType::U8 {
-                        255.0
-                    } else {
-                        1.0
-                    };
-                    colors
-                        .push(col.map(|c| crate::scene::image::srgb_to_linear((c / scale) as f32)));
-                }
-            }
-        }
-        if is_vertex && !colors.is_empty() {
-            mesh.colors = Some(colors);
-        }
+        triangles.push(tri.map(|v| v as u32));
     }
-    if let PlyReader::Ascii(mut it) = reader {
-        if it.next().is_some() {
-            return Err(bad(
-                "more data than the header declares (element counts are wrong)".into(),
-            ));
-        }
-    }
-    Ok(mesh)
+    Ok(())
 }

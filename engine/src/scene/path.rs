@@ -111,6 +111,112 @@ fn catmull_rom(p0: Vec3, p1: Vec3, p2: Vec3, p3: Vec3, u: f32) -> Vec3 {
         + (3.0 * p1 - p0 - 3.0 * p2 + p3) * u3)
 }
 
+/// Keyframe `i` of `keyframes`, checked: its time after the one before, a field of view, a
+/// finite position and exactly one valid orientation (look-at point or rotation).
+fn camera_key(file: &Path, keyframes: &[KeyDoc], i: usize) -> Result<Key> {
+    let k = &keyframes[i];
+    let at = |m: &str| Error::input(file, format!("keyframes[{i}]: {m}"));
+    if !k.time.is_finite() || (i > 0 && k.time <= keyframes[i - 1].time) {
+        return Err(at(
+            "time must be finite and increase from keyframe to keyframe",
+        ));
+    }
+    if !(k.fov_deg > 0.0 && k.fov_deg < 180.0) {
+        return Err(at("fov_deg must be in (0, 180)"));
+    }
+    let position = Vec3::from(k.position);
+    if !position.is_finite() {
+        return Err(at("position must be finite"));
+    }
+    let rotation = match (&k.look_at, &k.rotation) {
+        (Some(l), None) => {
+            let d = Vec3::from(*l) - position;
+            if !d.is_finite() {
+                return Err(at("look_at must be finite"));
+            }
+            if d.length() < 1e-6 {
+                return Err(at("look_at equals position"));
+            }
+            // The camera's up is +Y: a view straight up or down has no horizon.
+            if d.normalize().cross(Vec3::Y).length() < 1e-4 {
+                return Err(at(
+                    "look_at is straight above or below position (the up direction is +Y)",
+                ));
+            }
+            None
+        }
+        (None, Some(r)) => {
+            let m = Mat3::from_cols(r[0].into(), r[1].into(), r[2].into());
+            let off = (m * m.transpose() - Mat3::IDENTITY)
+                .to_cols_array()
+                .iter()
+                .fold(0f32, |a, v| a.max(v.abs()));
+            if off.is_nan() || off > 1e-3 || (m.determinant() - 1.0).abs() > 1e-3 {
+                return Err(at(
+                    "rotation must be a rotation matrix (rows: right, down, forward)",
+                ));
+            }
+            Some(Quat::from_mat3(&m))
+        }
+        _ => return Err(at("give exactly one of \"look_at\" and \"rotation\"")),
+    };
+    Ok(Key {
+        time: k.time,
+        position,
+        look_at: k.look_at.map(Vec3::from),
+        rotation,
+        fov_deg: k.fov_deg,
+    })
+}
+
+/// Lighting keyframe `i` of `lighting`, checked: its time after the one before, α_dim in
+/// [0, 1], intensities, original lights' factors and moves finite (and not negative).
+fn light_key(file: &Path, lighting: &[LightKeyDoc], i: usize) -> Result<LightKey> {
+    let l = &lighting[i];
+    let bad = |m: String| Error::input(file, m);
+    if !l.time.is_finite() || (i > 0 && l.time <= lighting[i - 1].time) {
+        return Err(bad(format!(
+            "lighting[{i}]: time must be finite and increase"
+        )));
+    }
+    if !(0.0..=1.0).contains(&l.dim) {
+        return Err(bad(format!("lighting[{i}]: dim must be in [0, 1]")));
+    }
+    for (name, k) in &l.intensities {
+        if !(k.is_finite() && *k >= 0.0) {
+            return Err(bad(format!(
+                "lighting[{i}]: intensities.{name} = {k}; expected a finite number >= 0"
+            )));
+        }
+    }
+    for (name, c) in &l.originals {
+        if !c.rgb().iter().all(|v| v.is_finite() && *v >= 0.0) {
+            return Err(bad(format!(
+                "lighting[{i}]: originals.{name} = {:?}; expected factors >= 0",
+                c.rgb()
+            )));
+        }
+    }
+    for (name, d) in &l.moves {
+        if !Vec3::from(*d).is_finite() {
+            return Err(bad(format!(
+                "lighting[{i}]: moves.{name} must be finite (metres)"
+            )));
+        }
+    }
+    Ok(LightKey {
+        time: l.time,
+        dim: l.dim,
+        intensities: l.intensities.clone(),
+        moves: l
+            .moves
+            .iter()
+            .map(|(k, v)| (k.clone(), Vec3::from(*v)))
+            .collect(),
+        originals: super::json::factors(&l.originals),
+    })
+}
+
 impl CameraPath {
     pub fn load(file: &Path) -> Result<CameraPath> {
         let doc: PathDoc = super::json::parse(file)?;
@@ -128,59 +234,8 @@ impl CameraPath {
             return Err(bad("keyframes: at least one keyframe is needed".into()));
         }
         let mut keys = Vec::new();
-        for (i, k) in doc.keyframes.iter().enumerate() {
-            let at = |m: &str| bad(format!("keyframes[{i}]: {m}"));
-            if !k.time.is_finite() || (i > 0 && k.time <= doc.keyframes[i - 1].time) {
-                return Err(at(
-                    "time must be finite and increase from keyframe to keyframe",
-                ));
-            }
-            if !(k.fov_deg > 0.0 && k.fov_deg < 180.0) {
-                return Err(at("fov_deg must be in (0, 180)"));
-            }
-            let position = Vec3::from(k.position);
-            if !position.is_finite() {
-                return Err(at("position must be finite"));
-            }
-            let rotation = match (&k.look_at, &k.rotation) {
-                (Some(l), None) => {
-                    let d = Vec3::from(*l) - position;
-                    if !d.is_finite() {
-                        return Err(at("look_at must be finite"));
-                    }
-                    if d.length() < 1e-6 {
-                        return Err(at("look_at equals position"));
-                    }
-                    // The camera's up is +Y: a view straight up or down has no horizon.
-                    if d.normalize().cross(Vec3::Y).length() < 1e-4 {
-                        return Err(at(
-                            "look_at is straight above or below position (the up direction is +Y)",
-                        ));
-                    }
-                    None
-                }
-                (None, Some(r)) => {
-                    let m = Mat3::from_cols(r[0].into(), r[1].into(), r[2].into());
-                    let off = (m * m.transpose() - Mat3::IDENTITY)
-                        .to_cols_array()
-                        .iter()
-                        .fold(0f32, |a, v| a.max(v.abs()));
-                    if off.is_nan() || off > 1e-3 || (m.determinant() - 1.0).abs() > 1e-3 {
-                        return Err(at(
-                            "rotation must be a rotation matrix (rows: right, down, forward)",
-                        ));
-                    }
-                    Some(Quat::from_mat3(&m))
-                }
-                _ => return Err(at("give exactly one of \"look_at\" and \"rotation\"")),
-            };
-            keys.push(Key {
-                time: k.time,
-                position,
-                look_at: k.look_at.map(Vec3::from),
-                rotation,
-                fov_deg: k.fov_deg,
-            });
+        for i in 0..doc.keyframes.len() {
+            keys.push(camera_key(file, &doc.keyframes, i)?);
         }
         if keys.iter().any(|k| k.rotation.is_some()) && keys.iter().any(|k| k.look_at.is_some()) {
             return Err(bad(
@@ -189,48 +244,8 @@ impl CameraPath {
             ));
         }
         let mut lights = Vec::new();
-        for (i, l) in doc.lighting.iter().enumerate() {
-            if !l.time.is_finite() || (i > 0 && l.time <= doc.lighting[i - 1].time) {
-                return Err(bad(format!(
-                    "lighting[{i}]: time must be finite and increase"
-                )));
-            }
-            if !(0.0..=1.0).contains(&l.dim) {
-                return Err(bad(format!("lighting[{i}]: dim must be in [0, 1]")));
-            }
-            for (name, k) in &l.intensities {
-                if !(k.is_finite() && *k >= 0.0) {
-                    return Err(bad(format!(
-                        "lighting[{i}]: intensities.{name} = {k}; expected a finite number >= 0"
-                    )));
-                }
-            }
-            for (name, c) in &l.originals {
-                if !c.rgb().iter().all(|v| v.is_finite() && *v >= 0.0) {
-                    return Err(bad(format!(
-                        "lighting[{i}]: originals.{name} = {:?}; expected factors >= 0",
-                        c.rgb()
-                    )));
-                }
-            }
-            for (name, d) in &l.moves {
-                if !Vec3::from(*d).is_finite() {
-                    return Err(bad(format!(
-                        "lighting[{i}]: moves.{name} must be finite (metres)"
-                    )));
-                }
-            }
-            lights.push(LightKey {
-                time: l.time,
-                dim: l.dim,
-                intensities: l.intensities.clone(),
-                moves: l
-                    .moves
-                    .iter()
-                    .map(|(k, v)| (k.clone(), Vec3::from(*v)))
-                    .collect(),
-                originals: super::json::factors(&l.originals),
-            });
+        for i in 0..doc.lighting.len() {
+            lights.push(light_key(file, &doc.lighting, i)?);
         }
         Ok(CameraPath {
             keys,
