@@ -122,17 +122,8 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, p: &super::BakeParams) -> Result<
         } else {
             None
         };
-        let eadd: Vec<Option<(Vec<[f32; 4]>, crate::scene::RgbImage)>> = ea
-            .iter()
-            .map(|(l, _)| {
-                let g = gt.join(l).join(format!("{}.diffuse.exr", v.name));
-                let light = scene.lights.iter().find(|x| x.name == *l);
-                let c = light.map(|x| cache.eadd(&v.name, x, p)).unwrap_or_default();
-                (g.exists() && c.exists())
-                    .then(|| Ok::<_, Error>((BakeCache::load_map(&c)?, load_rgb(&g)?)))
-                    .transpose()
-            })
-            .collect::<Result<_>>()?;
+        let names: Vec<&str> = ea.iter().map(|(l, _)| l.as_str()).collect();
+        let eadd = load_eadd(scene, cache, p, &gt, &v.name, &names)?;
         for p in 0..npix {
             let gi = i * npix + p;
             let (zp, zt) = (d.pos[gi][3], depth.pixels[p][0]);
@@ -158,31 +149,8 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, p: &super::BakeParams) -> Result<
                     e_true as f64,
                 ));
             }
-            if d.tri[gi] > 0 {
-                let t = geom.triangles[(d.tri[gi] - 1) as usize];
-                let [a, b, c] = t.map(|k| Vec3::from(geom.positions[k as usize]));
-                let x = Vec3::from_slice(&d.pos[gi][..3]);
-                // Barycentrics of x in the triangle.
-                let (v0, v1, v2) = (b - a, c - a, x - a);
-                let (d00, d01, d11, d20, d21) =
-                    (v0.dot(v0), v0.dot(v1), v1.dot(v1), v2.dot(v0), v2.dot(v1));
-                let den = d00 * d11 - d01 * d01;
-                if den.abs() > 1e-12 {
-                    let (bv, bw) = ((d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den);
-                    let w = [1.0 - bv - bw, bv, bw];
-                    let mut est = [0.0f32; 3];
-                    let mut seen = true;
-                    for (k, &vi) in t.iter().enumerate() {
-                        let av = albedo[vi as usize];
-                        seen &= av[3] > 0.0;
-                        for ch in 0..3 {
-                            est[ch] += w[k] * av[ch];
-                        }
-                    }
-                    if seen {
-                        al.push((lum(est) as f64, r as f64));
-                    }
-                }
+            if let Some(est) = albedo_at(&geom, &albedo, &d, gi) {
+                al.push((lum(est) as f64, r as f64));
             }
             for (k, e) in eadd.iter().enumerate() {
                 if let Some((ours, g)) = e {
@@ -205,4 +173,66 @@ pub fn evaluate(gpu: &Arc<Gpu>, scene: &Scene, p: &super::BakeParams) -> Result<
         .map(|(n, v)| (n, Stat::of(&v)))
         .collect();
     Ok(acc)
+}
+
+/// An added light's E_add map of one view and its ground truth (the light alone).
+type EaddPair = (Vec<[f32; 4]>, crate::scene::RgbImage);
+
+/// Each added light's E_add map of view `view` with its ground truth, where both exist.
+fn load_eadd(
+    scene: &Scene,
+    cache: &BakeCache,
+    p: &super::BakeParams,
+    gt: &std::path::Path,
+    view: &str,
+    lights: &[&str],
+) -> Result<Vec<Option<EaddPair>>> {
+    lights
+        .iter()
+        .map(|l| {
+            let g = gt.join(l).join(format!("{view}.diffuse.exr"));
+            let light = scene.lights.iter().find(|x| x.name == *l);
+            let c = light.map(|x| cache.eadd(view, x, p)).unwrap_or_default();
+            (g.exists() && c.exists())
+                .then(|| Ok::<_, Error>((BakeCache::load_map(&c)?, load_rgb(&g)?)))
+                .transpose()
+        })
+        .collect()
+}
+
+/// The albedo mesh interpolated at pixel `gi`'s surface point: `None` off the mesh, in a
+/// degenerate triangle, or where a corner's albedo was never seen.
+fn albedo_at(
+    geom: &crate::scene::Mesh,
+    albedo: &[[f32; 4]],
+    d: &ViewData,
+    gi: usize,
+) -> Option<[f32; 3]> {
+    if d.tri[gi] == 0 {
+        return None;
+    }
+    let t = geom.triangles[(d.tri[gi] - 1) as usize];
+    let [a, b, c] = t.map(|k| Vec3::from(geom.positions[k as usize]));
+    let x = Vec3::from_slice(&d.pos[gi][..3]);
+    // Barycentrics of x in the triangle.
+    let (v0, v1, v2) = (b - a, c - a, x - a);
+    let (d00, d01, d11, d20, d21) = (v0.dot(v0), v0.dot(v1), v1.dot(v1), v2.dot(v0), v2.dot(v1));
+    let den = d00 * d11 - d01 * d01;
+    if den.abs() > 1e-12 {
+        let (bv, bw) = ((d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den);
+        let w = [1.0 - bv - bw, bv, bw];
+        let mut est = [0.0f32; 3];
+        let mut seen = true;
+        for (k, &vi) in t.iter().enumerate() {
+            let av = albedo[vi as usize];
+            seen &= av[3] > 0.0;
+            for ch in 0..3 {
+                est[ch] += w[k] * av[ch];
+            }
+        }
+        if seen {
+            return Some(est);
+        }
+    }
+    None
 }
