@@ -740,59 +740,52 @@ fn moving_frames(
     Ok((1e3 / median(at_last), moving_res(res, last)))
 }
 
-fn frame_bench(
-    dir: &std::path::Path,
-    ((w, h), frames): ((u32, u32), u32),
-    (width, preset): (Option<u32>, Option<&str>),
-    json: Option<&PathBuf>,
-    fa: &crate::render::FrameArgs,
-    opts: &GpuOptions,
-) -> Result<()> {
-    use relit_engine::frame::{Lighting, Mode, Renderer};
+/// The renderer `relit bench frame` times, with every added light (and the original lights'
+/// entries when the preset needs them); with `--width` (`random`), a network of that width
+/// with random weights in place of the trained one.
+fn bench_renderer(
+    gpu: &std::sync::Arc<relit_engine::gpu::Gpu>,
+    scene: &relit_engine::scene::Scene,
+    args: &crate::render::FrameArgs,
+    (w, h): (u32, u32),
+    light: &relit_engine::frame::Lighting,
+    (random_net, width): (bool, Option<u32>),
+) -> Result<(relit_engine::frame::Renderer, relit_engine::frame::Mode)> {
+    use relit_engine::frame::{Mode, Renderer};
     use relit_engine::net::{NetConfig, NetKernels, Network, RandomParams};
-    let scene = crate::load_scene(dir)?;
-    let gpu = crate::open_gpu(opts)?;
-    let mut args = fa.clone();
-    // The frame benchmark times the network unless another mode is asked for.
-    args.mode = args.mode.or(Some(crate::render::ModeArg::Network));
-    let random_net = width.is_some() && args.mode != Some(crate::render::ModeArg::Ulr);
-    if random_net {
-        if args.weights.is_some() {
-            anyhow::bail!("--width gives the network random weights: it takes no --weights");
-        }
-        args.mode = Some(crate::render::ModeArg::Ulr);
-    }
-    let light = match preset.or(scene.presets.first().map(|p| p.name.as_str())) {
-        Some(p) => Lighting::preset(&scene, p)?,
-        None => Lighting::original(&scene),
-    };
-    // Every added light (and the original lights' entries when the preset needs them).
-    let mut used = relit_engine::frame::added_lights(&scene);
-    used.extend(crate::render::lit(&scene, &light));
+    let mut used = relit_engine::frame::added_lights(scene);
+    used.extend(crate::render::lit(scene, light));
     let (r, mut mode) =
-        crate::render::open_renderer(&gpu, &scene, &args, Some((w, h)), Some(used), false)?;
-    let mut r = if let (true, Some(width)) = (random_net, width) {
+        crate::render::open_renderer(gpu, scene, args, Some((w, h)), Some(used), false)?;
+    let r = if let (true, Some(width)) = (random_net, width) {
         let storage = args.storage.resolve(&gpu.caps, Some((w, h)));
         let net = Network::from_params(
-            NetKernels::new(&gpu, storage)?,
+            NetKernels::new(gpu, storage)?,
             NetConfig::paper(width),
             &RandomParams(1),
         )?;
         mode = Mode::Network;
-        Renderer::new(&gpu, r.scene, Some(net), storage)?
+        Renderer::new(gpu, r.scene, Some(net), storage)?
     } else {
         r
     };
-    // As users' frames: ratio and ULR skip the passes that only feed the network.
-    r.display_only = true;
-    // Cameras: the synthetic test path when there is one, else the input views.
+    Ok((r, mode))
+}
+
+/// The benchmark's cameras at `w`×`h`: `frames` + 1 along the synthetic test path when there is
+/// one, else the input views.
+fn bench_cameras(
+    scene: &relit_engine::scene::Scene,
+    frames: u32,
+    (w, h): (u32, u32),
+) -> Result<Vec<relit_engine::scene::Camera>> {
     let path = scene
         .synthetic
         .as_ref()
         .filter(|s| !s.test_path.is_empty())
         .map(|s| scene.root.join(&s.test_path))
         .filter(|p| p.is_file());
-    let cams: Vec<relit_engine::scene::Camera> = match &path {
+    Ok(match &path {
         Some(p) => {
             let cp = relit_engine::scene::path::CameraPath::load(p)?;
             let n = frames.max(1) + 1;
@@ -811,23 +804,84 @@ fn frame_bench(
             .iter()
             .map(|v| crate::render::rescale(&v.camera, w, h))
             .collect(),
+    })
+}
+
+/// The network's width and kernels for the benchmark's header line (empty without a network).
+fn network_note(r: &relit_engine::frame::Renderer, random_net: bool) -> String {
+    match (&r.net, random_net) {
+        (Some(n), true) => format!(
+            " (random weights, width {}, {:?} kernels)",
+            n.config.width, n.kernels.backend
+        ),
+        (Some(n), false) => format!(
+            " (width {}, {:?} kernels)",
+            n.config.width, n.kernels.backend
+        ),
+        _ => String::new(),
+    }
+}
+
+/// Each pass's GPU times (label → ms per frame), in first-seen order.
+type PassTimes = Vec<(String, Vec<f64>)>;
+
+/// Per-pass GPU times, and per-frame GPU and wall times (ms), of `frames` frames along `cams`
+/// from the second camera on (the first warmed up).
+fn timed_frames(
+    gpu: &std::sync::Arc<relit_engine::gpu::Gpu>,
+    r: &mut relit_engine::frame::Renderer,
+    cams: &[relit_engine::scene::Camera],
+    light: &relit_engine::frame::Lighting,
+    (mode, frames): (relit_engine::frame::Mode, u32),
+) -> Result<(PassTimes, Vec<f64>, Vec<f64>)> {
+    let mut stages: PassTimes = Vec::new();
+    let (mut totals, mut walls) = (Vec::new(), Vec::new());
+    for i in 0..frames.max(1) as usize {
+        let cam = &cams[(i + 1) % cams.len()];
+        let mut timer = Timer::new(gpu, 64)?;
+        let tw = Instant::now();
+        r.render(cam, light, mode, 1.0, Some(&mut timer))?;
+        walls.push(tw.elapsed().as_secs_f64() * 1e3);
+        totals.push(collect_spans(&timer, &mut stages)?);
+    }
+    Ok((stages, totals, walls))
+}
+
+fn frame_bench(
+    dir: &std::path::Path,
+    ((w, h), frames): ((u32, u32), u32),
+    (width, preset): (Option<u32>, Option<&str>),
+    json: Option<&PathBuf>,
+    fa: &crate::render::FrameArgs,
+    opts: &GpuOptions,
+) -> Result<()> {
+    use relit_engine::frame::Lighting;
+    let scene = crate::load_scene(dir)?;
+    let gpu = crate::open_gpu(opts)?;
+    let mut args = fa.clone();
+    // The frame benchmark times the network unless another mode is asked for.
+    args.mode = args.mode.or(Some(crate::render::ModeArg::Network));
+    let random_net = width.is_some() && args.mode != Some(crate::render::ModeArg::Ulr);
+    if random_net {
+        if args.weights.is_some() {
+            anyhow::bail!("--width gives the network random weights: it takes no --weights");
+        }
+        args.mode = Some(crate::render::ModeArg::Ulr);
+    }
+    let light = match preset.or(scene.presets.first().map(|p| p.name.as_str())) {
+        Some(p) => Lighting::preset(&scene, p)?,
+        None => Lighting::original(&scene),
     };
+    let (mut r, mode) = bench_renderer(&gpu, &scene, &args, (w, h), &light, (random_net, width))?;
+    // As users' frames: ratio and ULR skip the passes that only feed the network.
+    r.display_only = true;
+    let cams = bench_cameras(&scene, frames, (w, h))?;
     println!("device: {}", gpu.caps.name);
     println!(
         "scene: {} ({} views), {w}x{h}, mode {mode:?}{}, {:?} storage, {:?} maps",
         dir.display(),
         scene.views.len(),
-        match (&r.net, random_net) {
-            (Some(n), true) => format!(
-                " (random weights, width {}, {:?} kernels)",
-                n.config.width, n.kernels.backend
-            ),
-            (Some(n), false) => format!(
-                " (width {}, {:?} kernels)",
-                n.config.width, n.kernels.backend
-            ),
-            _ => String::new(),
-        },
+        network_note(&r, random_net),
         r.storage,
         r.scene.maps.format
     );
@@ -844,16 +898,7 @@ fn frame_bench(
             fit.as_secs_f64()
         );
     }
-    let mut stages: Vec<(String, Vec<f64>)> = Vec::new();
-    let (mut totals, mut walls) = (Vec::new(), Vec::new());
-    for i in 0..frames.max(1) as usize {
-        let cam = &cams[(i + 1) % cams.len()];
-        let mut timer = Timer::new(&gpu, 64)?;
-        let tw = Instant::now();
-        r.render(cam, &light, mode, 1.0, Some(&mut timer))?;
-        walls.push(tw.elapsed().as_secs_f64() * 1e3);
-        totals.push(collect_spans(&timer, &mut stages)?);
-    }
+    let (stages, totals, walls) = timed_frames(&gpu, &mut r, &cams, &light, (mode, frames))?;
     println!("{:<22} {:>10} {:>10}", "pass", "median ms", "p95 ms");
     for (label, v) in &stages {
         println!(

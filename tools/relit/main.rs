@@ -855,90 +855,20 @@ fn main() {
     let cli = parse_cli();
     let opts = gpu_options(&cli);
     MESH.set(cli.mesh.clone()).expect("set once");
-    let res = match &cli.cmd {
-        Cmd::Info => info(&opts),
-        Cmd::Scene {
-            cmd: SceneCmd::Check { dir, quick },
-        } => scene_check(dir, *quick),
-        Cmd::Scene {
-            cmd:
-                SceneCmd::FindLights {
-                    dir,
-                    dry_run,
-                    voxel,
-                    views,
-                },
-        } => find_lights(&opts, dir, *dry_run, (*voxel, *views)),
-        Cmd::Scene {
-            cmd:
-                SceneCmd::Synth {
-                    dir,
-                    format,
-                    views,
-                    res,
-                    seed,
-                },
-        } => {
-            let format = match format {
-                FormatArg::Relit => SceneFormat::Relit,
-                FormatArg::Colmap => SceneFormat::Colmap,
-                FormatArg::Sibr => SceneFormat::Sibr,
-                FormatArg::Transforms => SceneFormat::Transforms,
-            };
-            let o = scene::synth::SynthOptions {
-                views: *views,
-                width: res.0,
-                height: res.1,
-                seed: *seed,
-                ..Default::default()
-            };
-            scene::synth::write_room(dir, format, &o)
-                .map(|s| {
-                    println!(
-                        "wrote {} views ({format}) to {}",
-                        s.views.len(),
-                        dir.display()
-                    )
-                })
-                .map_err(Into::into)
-        }
-        Cmd::Bench { cmd } => bench::run(cmd, &opts),
-        Cmd::View {
-            scene,
-            res,
-            fullscreen,
-            frames,
-            screenshot,
-            camera,
-            lighting,
-            keys,
-            window,
-            present,
-            record,
-            play,
-            fluid,
-            no_hud,
-            frame,
-        } => view::view(
-            &opts,
-            view::ViewArgs {
-                scene: scene.clone(),
-                res: *res,
-                window: *window,
-                present: *present,
-                record: record.clone(),
-                play: play.clone(),
-                fluid: *fluid,
-                hud: !*no_hud,
-                fullscreen: *fullscreen,
-                frames: *frames,
-                screenshot: screenshot.clone(),
-                camera: camera.clone(),
-                lighting: lighting.clone(),
-                frame: frame.clone(),
-                keys: keys.clone(),
-            },
-        ),
+    let res = run(&cli, &opts);
+    if let Err(e) = res {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+/// Runs the command the command line names.
+fn run(cli: &Cli, opts: &GpuOptions) -> Result<()> {
+    match &cli.cmd {
+        Cmd::Info => info(opts),
+        Cmd::Scene { cmd } => scene_cmd(cmd, opts),
+        Cmd::Bench { cmd } => bench::run(cmd, opts),
+        cmd @ Cmd::View { .. } => view::view(opts, view_args(cmd)),
         Cmd::Render {
             scene,
             camera,
@@ -949,9 +879,9 @@ fn main() {
             leave_out,
             frame,
         } => match (batch, camera, out) {
-            (Some(b), _, _) => render::render_batch(&opts, scene, b, *res, frame),
+            (Some(b), _, _) => render::render_batch(opts, scene, b, *res, frame),
             (None, Some(c), Some(o)) => render::render(
-                &opts,
+                opts,
                 scene,
                 c,
                 *res,
@@ -972,7 +902,7 @@ fn main() {
             fps,
             max_frames,
             frame,
-        } => render::fly(&opts, scene, path, out, *res, (*fps, *max_frames), frame),
+        } => render::fly(opts, scene, path, out, *res, (*fps, *max_frames), frame),
         Cmd::Dump {
             scene,
             camera,
@@ -982,7 +912,7 @@ fn main() {
             parts,
             frame,
         } => render::dump(
-            &opts,
+            opts,
             scene,
             &render::DumpRequest {
                 camera,
@@ -996,7 +926,7 @@ fn main() {
         Cmd::Dataset(_) if cli.mesh.is_some() => Err(anyhow::anyhow!(
             "--mesh names one scene's proxy; relit dataset makes every room's own"
         )),
-        Cmd::Dataset(a) => dataset::run(a, &opts),
+        Cmd::Dataset(a) => dataset::run(a, opts),
         Cmd::Bake {
             scene,
             views,
@@ -1010,29 +940,140 @@ fn main() {
             mesh_process,
             uncompressed,
         } => {
-            let mut p = quality_params(*quality);
-            p.views = views.clone();
-            p.mesh_process = *mesh_process;
-            p.compress = !*uncompressed;
-            if let Some(r) = rays {
-                p.irradiance_samples = *r;
-            }
-            if let Some(t) = texel_rays {
-                p.source_cache_samples = *t;
-            }
-            if let Some(a) = added_samples {
-                p.added_samples = *a;
-            }
-            if let Some(c) = cache_samples {
-                p.cache_samples = *c;
-            }
-            bake(scene, &p, lights, *eval, &opts)
+            let p = bake_params(
+                *quality,
+                views.clone(),
+                (*mesh_process, *uncompressed),
+                (*rays, *texel_rays, *added_samples, *cache_samples),
+            );
+            bake(scene, &p, lights, *eval, opts)
         }
-    };
-    if let Err(e) = res {
-        eprintln!("error: {e:#}");
-        std::process::exit(1);
     }
+}
+
+/// `relit bake`'s parameters: the quality preset with the command line's views, geometry
+/// processing, compression and, where given, sample counts.
+fn bake_params(
+    quality: Quality,
+    views: Option<std::ops::Range<usize>>,
+    (mesh_process, uncompressed): (bool, bool),
+    (rays, texel_rays, added_samples, cache_samples): (
+        Option<u32>,
+        Option<u32>,
+        Option<u32>,
+        Option<u32>,
+    ),
+) -> relit_engine::bake::BakeParams {
+    let mut p = quality_params(quality);
+    p.views = views;
+    p.mesh_process = mesh_process;
+    p.compress = !uncompressed;
+    if let Some(r) = rays {
+        p.irradiance_samples = r;
+    }
+    if let Some(t) = texel_rays {
+        p.source_cache_samples = t;
+    }
+    if let Some(a) = added_samples {
+        p.added_samples = a;
+    }
+    if let Some(c) = cache_samples {
+        p.cache_samples = c;
+    }
+    p
+}
+
+/// The viewer's arguments from `relit view`'s command line (`cmd` is a `Cmd::View`).
+fn view_args(cmd: &Cmd) -> view::ViewArgs {
+    let Cmd::View {
+        scene,
+        res,
+        fullscreen,
+        frames,
+        screenshot,
+        camera,
+        lighting,
+        keys,
+        window,
+        present,
+        record,
+        play,
+        fluid,
+        no_hud,
+        frame,
+    } = cmd
+    else {
+        unreachable!("view_args is given `relit view`'s command")
+    };
+    view::ViewArgs {
+        scene: scene.clone(),
+        res: *res,
+        window: *window,
+        present: *present,
+        record: record.clone(),
+        play: play.clone(),
+        fluid: *fluid,
+        hud: !*no_hud,
+        fullscreen: *fullscreen,
+        frames: *frames,
+        screenshot: screenshot.clone(),
+        camera: camera.clone(),
+        lighting: lighting.clone(),
+        frame: frame.clone(),
+        keys: keys.clone(),
+    }
+}
+
+/// Runs a `relit scene` command.
+fn scene_cmd(cmd: &SceneCmd, opts: &GpuOptions) -> Result<()> {
+    match cmd {
+        SceneCmd::Check { dir, quick } => scene_check(dir, *quick),
+        SceneCmd::FindLights {
+            dir,
+            dry_run,
+            voxel,
+            views,
+        } => find_lights(opts, dir, *dry_run, (*voxel, *views)),
+        SceneCmd::Synth {
+            dir,
+            format,
+            views,
+            res,
+            seed,
+        } => synth(dir, *format, *views, *res, *seed),
+    }
+}
+
+/// `relit scene synth`: writes the procedural test room in `format`.
+fn synth(
+    dir: &std::path::Path,
+    format: FormatArg,
+    views: usize,
+    res: (u32, u32),
+    seed: u64,
+) -> Result<()> {
+    let format = match format {
+        FormatArg::Relit => SceneFormat::Relit,
+        FormatArg::Colmap => SceneFormat::Colmap,
+        FormatArg::Sibr => SceneFormat::Sibr,
+        FormatArg::Transforms => SceneFormat::Transforms,
+    };
+    let o = scene::synth::SynthOptions {
+        views,
+        width: res.0,
+        height: res.1,
+        seed,
+        ..Default::default()
+    };
+    scene::synth::write_room(dir, format, &o)
+        .map(|s| {
+            println!(
+                "wrote {} views ({format}) to {}",
+                s.views.len(),
+                dir.display()
+            )
+        })
+        .map_err(Into::into)
 }
 
 /// The built-in weights' width and provenance, from their metadata.

@@ -399,19 +399,8 @@ pub fn fly(
 ) -> Result<()> {
     let scene = crate::load_scene(dir)?;
     let cp = CameraPath::load(path)?;
-    if !(fps > 0.0 && fps <= 240.0) {
-        bail!("--fps {fps}: expected a value in (0, 240]");
-    }
-    let (t0, t1) = (cp.start(), cp.duration());
-    let frames = ((t1 - t0) as f64 * fps as f64).floor() + 1.0;
-    if frames.is_nan() || frames > max_frames as f64 {
-        bail!(
-            "{}: the path lasts {:.0} s, {frames:.0} frames at {fps} fps; more than --max-frames {max_frames} (raise it for a longer film)",
-            path.display(),
-            t1 - t0
-        );
-    }
-    let n = frames as u64;
+    let n = fly_frame_count(path, &cp, fps, max_frames)?;
+    let t0 = cp.start();
     let gpu = crate::open_gpu(opts)?;
     let (mut r, mode) = open_renderer(&gpu, &scene, a, Some(res), Some(cp.lit_lights()), false)?;
     r.display_only = true;
@@ -419,39 +408,7 @@ pub fn fly(
     let (w, h) = res;
     let tmp = scene::temp_path(out);
     let mut ffmpeg = if video {
-        if w % 2 != 0 || h % 2 != 0 {
-            bail!("--res {w}x{h}: MP4 (yuv420p) needs even sizes");
-        }
-        let child = std::process::Command::new("ffmpeg")
-            .args([
-                "-loglevel",
-                "error",
-                "-y",
-                "-f",
-                "rawvideo",
-                "-pix_fmt",
-                "rgba",
-                "-s",
-            ])
-            .arg(format!("{w}x{h}"))
-            .args([
-                "-r",
-                &fps.to_string(),
-                "-i",
-                "-",
-                "-c:v",
-                "libx264",
-                "-preset",
-                "medium",
-            ])
-            .args([
-                "-crf", "18", "-pix_fmt", "yuv420p", "-threads", "1", "-f", "mp4",
-            ])
-            .arg(&tmp)
-            .stdin(std::process::Stdio::piped())
-            .spawn()
-            .context("starting ffmpeg (install it, or give a directory to write PNG frames)")?;
-        Some(child)
+        Some(start_ffmpeg(res, fps, &tmp)?)
     } else {
         std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         None
@@ -508,20 +465,83 @@ pub fn fly(
         }
     }
     bar.finish();
-    if let Some(mut child) = ffmpeg {
-        drop(child.stdin.take());
-        let st = child.wait()?;
-        if !st.success() {
-            let _ = std::fs::remove_file(&tmp);
-            bail!("ffmpeg failed ({st}) writing {}", out.display());
-        }
-        std::fs::rename(&tmp, out).with_context(|| format!("writing {}", out.display()))?;
+    if let Some(child) = ffmpeg {
+        finish_ffmpeg(child, &tmp, out)?;
     }
     println!(
         "{}: {n} frames at {w}x{h}, {fps} fps ({mode:?}), {:.1} s",
         out.display(),
         t_start.elapsed().as_secs_f64()
     );
+    Ok(())
+}
+
+/// How many frames `relit fly` renders of the path at `fps`: an error for a rate outside
+/// (0, 240] or a path longer than `max_frames` (it would write frames until the disk fills).
+fn fly_frame_count(path: &Path, cp: &CameraPath, fps: f32, max_frames: u64) -> Result<u64> {
+    if !(fps > 0.0 && fps <= 240.0) {
+        bail!("--fps {fps}: expected a value in (0, 240]");
+    }
+    let (t0, t1) = (cp.start(), cp.duration());
+    let frames = ((t1 - t0) as f64 * fps as f64).floor() + 1.0;
+    if frames.is_nan() || frames > max_frames as f64 {
+        bail!(
+            "{}: the path lasts {:.0} s, {frames:.0} frames at {fps} fps; more than --max-frames {max_frames} (raise it for a longer film)",
+            path.display(),
+            t1 - t0
+        );
+    }
+    Ok(frames as u64)
+}
+
+/// ffmpeg reading raw RGBA frames of `w`×`h` on its stdin and encoding them to an H.264 MP4 at
+/// `tmp` (MP4's yuv420p needs even sizes).
+fn start_ffmpeg((w, h): (u32, u32), fps: f32, tmp: &Path) -> Result<std::process::Child> {
+    if w % 2 != 0 || h % 2 != 0 {
+        bail!("--res {w}x{h}: MP4 (yuv420p) needs even sizes");
+    }
+    let child = std::process::Command::new("ffmpeg")
+        .args([
+            "-loglevel",
+            "error",
+            "-y",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgba",
+            "-s",
+        ])
+        .arg(format!("{w}x{h}"))
+        .args([
+            "-r",
+            &fps.to_string(),
+            "-i",
+            "-",
+            "-c:v",
+            "libx264",
+            "-preset",
+            "medium",
+        ])
+        .args([
+            "-crf", "18", "-pix_fmt", "yuv420p", "-threads", "1", "-f", "mp4",
+        ])
+        .arg(tmp)
+        .stdin(std::process::Stdio::piped())
+        .spawn()
+        .context("starting ffmpeg (install it, or give a directory to write PNG frames)")?;
+    Ok(child)
+}
+
+/// Closes ffmpeg's input, waits for it, and moves its MP4 from `tmp` to `out` (removing it when
+/// ffmpeg failed).
+fn finish_ffmpeg(mut child: std::process::Child, tmp: &Path, out: &Path) -> Result<()> {
+    drop(child.stdin.take());
+    let st = child.wait()?;
+    if !st.success() {
+        let _ = std::fs::remove_file(tmp);
+        bail!("ffmpeg failed ({st}) writing {}", out.display());
+    }
+    std::fs::rename(tmp, out).with_context(|| format!("writing {}", out.display()))?;
     Ok(())
 }
 
