@@ -373,3 +373,21 @@ fn relit_help_lists_the_viewer_keys() {
         );
     }
 }
+
+/// The repository keeps at most one training checkpoint (a run in progress's, .gitignore), so
+/// that checkpoint versions stop accumulating in history; finished runs keep theirs in history
+/// or a data folder.
+#[test]
+fn at_most_one_training_checkpoint_is_tracked() {
+    let out = std::process::Command::new("git")
+        .args(["ls-files", "--", "tools/train/runs"])
+        .current_dir(ROOT)
+        .output()
+        .expect("git runs");
+    assert!(out.status.success(), "git ls-files: {out:?}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    let tracked: Vec<&str> = (text.lines())
+        .filter(|f| f.ends_with(".pt") || f.ends_with(".safetensors"))
+        .collect();
+    assert!(tracked.len() <= 1, "tracked checkpoints: {tracked:?}");
+}
