@@ -101,7 +101,7 @@ fn room() -> Room {
                 let g = match s {
                     Some((x, n)) if n.y > 0.9 && glossy::sees_light(&mesh, *x, *n, &gpanel) => {
                         let v = (c.center() - *x).normalize();
-                        S_TRUE * glossy::lobe_light(*x, v, *n, GLOSSY_LOBE_2, &gpanel)
+                        S_TRUE * glossy::lobe_light(*x, v, *n, (GLOSSY_LOBE_2, None), &gpanel)
                     }
                     _ => Vec3::ZERO,
                 };
@@ -180,6 +180,13 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
     let comp = b.composites().unwrap();
     let irr = planes(&b.irr, irradiance::PLANES * npix);
     let gl = planes(&b.glossy, glossy::PLANES * npix);
+    let hdr = r.hdr().unwrap();
+    // The sums over the views, which the fit's renders take instead of the layer.
+    r.render_glossy_sums(&t.novel, &lighting).unwrap();
+    let sums = planes(
+        &r.buffers_ref().unwrap().glossy_sums,
+        glossy::SUM_PLANES * npix,
+    );
     let active = r.active_views().to_vec();
     let inputs = RefInputs {
         data: &r.scene.data,
@@ -198,9 +205,8 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
         keep: &lighting.originals,
         live: None,
     };
-    // The sums over the views: 1% of each plane's scale on ≥ 97% of the pixels (bilinear
-    // weights on lavapipe are 8-bit fixed point; the depth test can flip at edges).
-    let sums = planes(&b.glossy_sums, glossy::SUM_PLANES * npix);
+    // The sums: 1% of each plane's scale on ≥ 97% of the pixels (bilinear weights on lavapipe
+    // are 8-bit fixed point; the depth test can flip at edges).
     let sums_want = glossy::sums_reference(&inputs, &t.mesh, &comp);
     for k in 0..glossy::SUM_PLANES {
         let s = k * npix..(k + 1) * npix;
@@ -214,7 +220,7 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
             "glossy sums plane {k}: {bad} of {npix} pixels differ"
         );
     }
-    // The layer from the GPU's own sums.
+    // The layer.
     let per_tri = r
         .glossy_fit()
         .unwrap()
@@ -223,7 +229,7 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
         per_tri: &per_tri,
         gtri: &g.tri,
     };
-    let want = glossy::reference(&inputs, &t.mesh, &comp, (&sums, &irr), &fit);
+    let want = glossy::reference(&inputs, &t.mesh, &comp, &irr, &fit);
     // The choice of lobe can flip where two explain the views almost equally; bilinear weights
     // on lavapipe are 8-bit fixed point: 1% of the plane's scale on ≥ 97% of the pixels.
     for k in 0..glossy::PLANES {
@@ -289,7 +295,6 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
     assert!(wf * 20 <= nw, "{wf} of {nw} wall pixels fitted");
 
     // Glossy mode: D relit by eq. 5 plus S, the lights drawn over it.
-    let hdr = r.hdr().unwrap();
     let image = glossy::reference_image(&gl, &irr, npix);
     let image: Vec<[f32; 3]> = (0..npix)
         .map(|p| {

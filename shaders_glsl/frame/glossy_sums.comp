@@ -1,14 +1,12 @@
 #version 460
-// The view-dependent layer's fit, first half (§3: L = a·E + S; frame/glossy.comp pools and
-// solves). At each novel-view pixel the input views j that see the surface point x give a
+// The view-dependent layer's sums (§3: L = a·E + S), which the fit per surface pools
+// (frame/glossy_fit.rs renders them from the input cameras). At each pixel the input views j that see the surface point x give a
 // photo value I_j and three regressors X_j,c: the declared original lights x sees, through a
 // GGX lobe of roughness GLOSSY_LOBE_1..3 seen from view j (lobe.glsl; the normal smoothed over
 // the surface around x, `smooth_normal`); views more grazing than GLOSSY_COS_MIN are skipped.
-// For the model I_j = D + s·X_j (RGB D, grey s) it writes the centred sums a window, or a whole
-// surface (frame/glossy_fit.rs), can pool:
+// For the model I_j = D + s·X_j (RGB D, grey s) it writes the centred sums a surface pools:
 //   plane 0: Σ|X − X̄|² per lobe;  plane 1: Σ(X − X̄)·(I − Ī) per lobe;
-//   plane 2: (Σ|I − Ī|², views, original lights seen (bits), GLOSSY_SPREAD²·|Ī|²·views);
-//   planes 3–5: X̄ of each lobe under I_1's view weights (D = I_1 − s·X̄ keeps I_1's blend).
+//   plane 2: (Σ|I − Ī|², views, original lights seen (bits), 0).
 // All zero where fewer than GLOSSY_MIN_VIEWS views see x or I_1 is black.
 #extension GL_EXT_ray_query : require
 #extension GL_EXT_scalar_block_layout : require
@@ -37,7 +35,7 @@ layout(push_constant) uniform Push {
 
 #include "lobe.glsl"
 
-const uint PLANES = 3u + LOBES;
+const uint PLANES = 3u;
 
 void main() {
     uint p = gl_GlobalInvocationID.x;
@@ -53,11 +51,11 @@ void main() {
     for (uint l = 0u; l < min(pc.norig, MAX_ORIG); ++l)
         if (sees_light(x, n, originals[l].light)) seen |= 1u << l;
     if (seen == 0u) return;
-    vec3 sx[LOBES], swx[LOBES];
+    vec3 sx[LOBES];
     float sxx[LOBES], sxi[LOBES];
-    for (uint c = 0u; c < LOBES; ++c) { sx[c] = vec3(0.0); swx[c] = vec3(0.0); sxx[c] = 0.0; sxi[c] = 0.0; }
+    for (uint c = 0u; c < LOBES; ++c) { sx[c] = vec3(0.0); sxx[c] = 0.0; sxi[c] = 0.0; }
     vec3 si = vec3(0.0);
-    float sii = 0.0, cnt = 0.0, sw = 0.0;
+    float sii = 0.0, cnt = 0.0;
     for (uint a = 0u; a < pc.nactive; ++a) {
         uint j = active_views[a];
         if (visible_pixel(j, x, pc.view_w, pc.view_h) < 0) continue;
@@ -65,14 +63,12 @@ void main() {
         // Grazing views: the proxy's errors grow and Schlick's Fresnel is least sure.
         if (dot(n, normalize(ci - x)) < GLOSSY_COS_MIN) continue;
         vec3 col = sample_map(tex_img, project_px(j, x), j);
-        vec3 e = pc.eye.xyz - ci;
-        float w1 = 1.0 / max(dot(e, e), 1e-8);
         vec3 xs[LOBES];
         lobe_originals(x, normalize(ci - x), n, seen, xs);
         for (uint c = 0u; c < LOBES; ++c) {
-            sx[c] += xs[c]; swx[c] += w1 * xs[c]; sxx[c] += dot(xs[c], xs[c]); sxi[c] += dot(xs[c], col);
+            sx[c] += xs[c]; sxx[c] += dot(xs[c], xs[c]); sxi[c] += dot(xs[c], col);
         }
-        si += col; sii += dot(col, col); cnt += 1.0; sw += w1;
+        si += col; sii += dot(col, col); cnt += 1.0;
     }
     if (cnt < float(GLOSSY_MIN_VIEWS)) return;
     vec3 im = si / cnt;
@@ -81,10 +77,8 @@ void main() {
         vec3 xm = sx[c] / cnt;
         cxx[c] = sxx[c] - cnt * dot(xm, xm);
         cxi[c] = sxi[c] - cnt * dot(xm, im);
-        sums[(3u + c) * npix + p] = vec4(swx[c] / sw, 0.0);
     }
     sums[p] = cxx;
     sums[npix + p] = cxi;
-    float spread = GLOSSY_SPREAD * GLOSSY_SPREAD * dot(im, im) * cnt;
-    sums[2u * npix + p] = vec4(sii - cnt * dot(im, im), cnt, float(seen), spread);
+    sums[2u * npix + p] = vec4(sii - cnt * dot(im, im), cnt, float(seen), 0.0);
 }

@@ -2,12 +2,12 @@
 //! `glossy.comp`. The photos that see a surface point are fitted as `I_j ≈ D + Σ_c w_c·X_j,c`
 //! (RGB D, grey w_c), X_j,c the declared original lights through a GGX microfacet lobe of
 //! roughness GLOSSY_LOBE_1..3 seen from view j, with Schlick's Fresnel (`lobe.glsl`; w_c then
-//! reads as the surface's F0). The first pass gathers each pixel's centred sums over the views.
-//! The second takes the strengths of the pixel's surface, fitted once per scene from every
-//! photo of that surface (`glossy_fit.rs`), or where it has none the pixel's own fit pooled over
-//! 5×5 pixels; it gives the diffuse part D, which eq. 5 relights, and the view-dependent part S:
-//! the photos' own (I_1 − D), dimmed with their lights, plus each lit lamp through the lobes
-//! seen from the novel view. Glossy mode shows `D · (E_add + E_src − E_rem) / E_src + S`
+//! reads as the surface's F0). The sums pass gathers each pixel's centred sums over the views;
+//! the fit per surface (`glossy_fit.rs`) renders it from the input cameras once per scene and
+//! pools it over every photo of a surface. The layer takes the strengths of the pixel's surface
+//! (none: ratio's image); it gives the diffuse part D, which eq. 5 relights, and the
+//! view-dependent part S: the photos' own (I_1 − D), dimmed with their lights, plus each lit
+//! lamp through the lobes seen from the novel view. Glossy mode shows `D · (E_add + E_src − E_rem) / E_src + S`
 //! (`output.glsl`): ratio's image under the original lighting, and where no fit holds.
 
 use glam::Vec3;
@@ -15,8 +15,8 @@ use glam::Vec3;
 use super::RefInputs;
 use crate::bake::GpuLight;
 use crate::constants::{
-    GLOSSY_COS_MIN, GLOSSY_FIT, GLOSSY_FIT_RAMP, GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3,
-    GLOSSY_MIN_VIEWS, GLOSSY_SHARE, GLOSSY_SPREAD, GLOSSY_S_MAX,
+    GLOSSY_COS_MIN, GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3, GLOSSY_MIN_VIEWS, GLOSSY_SHARE,
+    GLOSSY_S_MAX,
 };
 use crate::gpu::shaders;
 use crate::scene::Mesh;
@@ -57,9 +57,10 @@ fn lobe_width(c: usize) -> f32 {
     [GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3][c]
 }
 
-/// The largest strength lobe c may take (`lobe.glsl`'s `lobe_s_max`): GLOSSY_S_MAX for the
-/// narrowest, less for wider ones in proportion to their roughness; a slope above it rejects
-/// the lobe (a near-mirror blurred by its proxy would glow around every lamp).
+/// The largest strength lobe c may take in the fit per surface (`glossy_fit.rs`):
+/// GLOSSY_S_MAX for the narrowest, less for wider ones in proportion to their roughness (a rough
+/// surface that reflects as much as a mirror is a rough metal, rare indoors; a near-mirror
+/// blurred by its proxy would otherwise take a wide lobe and glow around every lamp).
 pub fn lobe_s_max(c: usize) -> f32 {
     GLOSSY_S_MAX * GLOSSY_LOBE_1 / lobe_width(c)
 }
@@ -90,21 +91,38 @@ pub fn sees_light(mesh: &Mesh, x: Vec3, n: Vec3, l: &GpuLight) -> bool {
     !crate::cpu::occluded(mesh, x + n * 1e-3, d / dist, 1e-3, dist - 0.05)
 }
 
-/// The GGX lobe of roughness α that light l (solid angle Ω, unit direction w from x) gives
-/// towards unit v over normal n (`lobe.glsl`'s `lobe_weight`): Ω·D(n·h)·F(v·h)/(4·n·v·F0), α
-/// widened to α'² = α² + Ω/8π, F Schlick's with F0 = 0.04; zero below GLOSSY_COS_MIN.
-pub fn lobe_weight(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> f32 {
+/// The GGX lobe of roughness α lit by solid angle Ω from unit w, seen from unit v over normal
+/// n, without its Fresnel term (`lobe.glsl`'s `lobe_shape`): Ω·D(n·h)/(4·n·v), α widened to
+/// α'² = α² + Ω/8π, and v·h; zero below GLOSSY_COS_MIN.
+fn lobe_shape(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> (f32, f32) {
     use std::f32::consts::PI;
     let cv = n.dot(v);
     if cv < GLOSSY_COS_MIN || n.dot(w) <= 0.0 {
-        return 0.0;
+        return (0.0, 1.0);
     }
     let a2 = alpha * alpha + omega / (8.0 * PI);
     let h = (w + v).normalize();
     let ch = n.dot(h).max(0.0);
     let t = ch * ch * (a2 - 1.0) + 1.0;
-    let f = 1.0 + (1.0 / 0.04 - 1.0) * (1.0 - v.dot(h).clamp(0.0, 1.0)).powi(5);
-    omega * a2 / (PI * t * t) * f / (4.0 * cv)
+    (
+        omega * a2 / (PI * t * t) / (4.0 * cv),
+        v.dot(h).clamp(0.0, 1.0),
+    )
+}
+
+/// The fit's regressor (`lobe_weight`): the lobe with Schlick's Fresnel of a dielectric over its
+/// F0, F(v·h)/0.04, so that a fitted strength reads as the surface's F0.
+pub fn lobe_weight(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> f32 {
+    let (g, vh) = lobe_shape(alpha, omega, w, v, n);
+    g * (1.0 + (1.0 / 0.04 - 1.0) * (1.0 - vh).powi(5))
+}
+
+/// The lobe of fitted strength s as it reflects (`lobe_reflect`): Schlick's Fresnel with F0 = s
+/// (a metal or mirror hardly brightens at grazing views; a dielectric, s = 0.04, gives
+/// s·`lobe_weight`).
+pub fn lobe_reflect(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3, s: f32) -> f32 {
+    let (g, vh) = lobe_shape(alpha, omega, w, v, n);
+    g * (s + (1.0 - s) * (1.0 - vh).powi(5))
 }
 
 /// Light l's solid angle from x (0 from behind) and the unit direction to its centre.
@@ -124,46 +142,44 @@ fn light_seen(x: Vec3, l: &GpuLight) -> (f32, Vec3) {
 }
 
 /// Light l's radiance seen from x (normal n) from unit direction v through the lobe of GGX
-/// roughness α.
-pub fn lobe_light(x: Vec3, v: Vec3, n: Vec3, alpha: f32, l: &GpuLight) -> Vec3 {
+/// roughness α: the fit's regressor, or with `Some(s)` the lobe of strength s as it reflects.
+pub fn lobe_light(x: Vec3, v: Vec3, n: Vec3, (alpha, s): (f32, Option<f32>), l: &GpuLight) -> Vec3 {
     let (omega, w) = light_seen(x, l);
     if omega <= 0.0 {
         return Vec3::ZERO;
     }
-    Vec3::from_slice(&l.radiance[..3]) * lobe_weight(alpha, omega, w, v, n)
+    let k = match s {
+        None => lobe_weight(alpha, omega, w, v, n),
+        Some(s) => lobe_reflect(alpha, omega, w, v, n, s),
+    };
+    Vec3::from_slice(&l.radiance[..3]) * k
 }
 
 /// Planes of the sums pass: Σ|X − X̄|² and Σ(X − X̄)·(I − Ī) per lobe, (Σ|I − Ī|², views,
-/// original lights seen, spread threshold), X̄ under I_1's weights per lobe.
-pub const SUM_PLANES: usize = 3 + LOBES;
-/// The pooling window's radius (pixels).
-const RADIUS: i64 = 2;
+/// original lights seen, 0).
+pub const SUM_PLANES: usize = 3;
 
 /// The sums pass's running sums over the views that see a point.
 #[derive(Default)]
 struct Sums {
     x: [Vec3; LOBES],
-    wx: [Vec3; LOBES],
     xx: [f32; LOBES],
     xi: [f32; LOBES],
     i: Vec3,
     ii: f32,
     n: f32,
-    w: f32,
 }
 
 impl Sums {
-    fn add(&mut self, col: Vec3, w1: f32, xs: [Vec3; LOBES]) {
+    fn add(&mut self, col: Vec3, xs: [Vec3; LOBES]) {
         for (c, xc) in xs.into_iter().enumerate() {
             self.x[c] += xc;
-            self.wx[c] += w1 * xc;
             self.xx[c] += xc.dot(xc);
             self.xi[c] += xc.dot(col);
         }
         self.i += col;
         self.ii += col.dot(col);
         self.n += 1.0;
-        self.w += w1;
     }
 
     /// The pixel's planes (`SUM_PLANES` vec4), None with fewer than GLOSSY_MIN_VIEWS views.
@@ -177,10 +193,8 @@ impl Sums {
             let xm = self.x[c] / self.n;
             out[0][c] = self.xx[c] - self.n * xm.dot(xm);
             out[1][c] = self.xi[c] - self.n * xm.dot(im);
-            out[3 + c] = (self.wx[c] / self.w).extend(0.0).into();
         }
-        let spread = GLOSSY_SPREAD * GLOSSY_SPREAD * im.dot(im) * self.n;
-        out[2] = [self.ii - self.n * im.dot(im), self.n, seen as f32, spread];
+        out[2] = [self.ii - self.n * im.dot(im), self.n, seen as f32, 0.0];
         Some(out)
     }
 }
@@ -230,12 +244,61 @@ fn seen_originals(r: &RefInputs, mesh: &Mesh, x: Vec3, n: Vec3) -> u32 {
         .fold(0, |m, (l, _)| m | 1 << l)
 }
 
-/// The seen original lights through lobe c, seen from unit v over normal n.
-fn lobe_originals(r: &RefInputs, seen: u32, (x, n): (Vec3, Vec3), v: Vec3, c: usize) -> Vec3 {
+/// The seen original lights through lobe c, seen from unit v over normal n: the fit's
+/// regressor, or with `Some(s)` the lobe of strength s as it reflects.
+fn lobe_originals(
+    r: &RefInputs,
+    seen: u32,
+    (x, n): (Vec3, Vec3),
+    v: Vec3,
+    (c, s): (usize, Option<f32>),
+) -> Vec3 {
     (r.originals.iter().take(MAX_ORIG).enumerate())
         .filter(|(l, _)| seen & (1 << l) != 0)
-        .map(|(_, o)| lobe_light(x, v, n, lobe_width(c), &o.light))
+        .map(|(_, o)| lobe_light(x, v, n, (lobe_width(c), s), &o.light))
         .sum()
+}
+
+/// The active input views that see x and are not grazing (normal n within GLOSSY_COS_MIN of the
+/// view): (view, unit direction to it, I_1's view weight 1/|eye − c_j|²).
+fn views_seeing<'a>(
+    r: &'a RefInputs<'a>,
+    x: Vec3,
+    n: Vec3,
+) -> impl Iterator<Item = (usize, Vec3, f32)> + 'a {
+    r.active.iter().filter_map(move |&j| {
+        let j = j as usize;
+        r.data.visible_pixel(j, x)?;
+        let ci = r.data.cameras[j].center();
+        let v = (ci - x).normalize();
+        let e = r.eye - ci;
+        (n.dot(v) >= GLOSSY_COS_MIN).then(|| (j, v, 1.0 / e.dot(e).max(1e-8)))
+    })
+}
+
+/// Σ_c X̄_c(w_c) at x (`glossy.comp`'s `photos_part`): the seen original lights through the
+/// lobes of the fitted strengths (`lobe_reflect`) from each view that sees x, under I_1's view weights; zero under
+/// GLOSSY_MIN_VIEWS views.
+fn photos_part(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> Vec3 {
+    let seen = seen_originals(r, mesh, x, n);
+    if seen == 0 {
+        return Vec3::ZERO;
+    }
+    let (mut sx, mut sw, mut cnt) = (Vec3::ZERO, 0.0, 0);
+    for (_, v, w1) in views_seeing(r, x, n) {
+        let xs: Vec3 = (0..LOBES)
+            .filter(|&c| w[c] > 0.0)
+            .map(|c| lobe_originals(r, seen, (x, n), v, (c, Some(w[c]))))
+            .sum();
+        sx += w1 * xs;
+        sw += w1;
+        cnt += 1;
+    }
+    if cnt < GLOSSY_MIN_VIEWS as usize {
+        Vec3::ZERO
+    } else {
+        sx / sw
+    }
 }
 
 /// CPU reference of the sums pass: `SUM_PLANES` planes of `width × height` vec4.
@@ -253,22 +316,11 @@ pub fn sums_reference(r: &RefInputs, mesh: &Mesh, comp: &[[f32; 4]]) -> Vec<[f32
             continue;
         }
         let mut sums = Sums::default();
-        for &j in r.active {
-            let ju = j as usize;
-            if r.data.visible_pixel(ju, x).is_none() {
-                continue;
-            }
-            let ci = r.data.cameras[ju].center();
-            let v = (ci - x).normalize();
-            // Grazing views are skipped (glossy_sums.comp).
-            if n.dot(v) < GLOSSY_COS_MIN {
-                continue;
-            }
-            let px = super::reproject::project_px(r.data, ju, x);
-            let col = super::maps::sample_bilinear(&r.maps.img[ju], vw, vh, px);
-            let e = r.eye - ci;
-            let xs = [0, 1, 2].map(|c| lobe_originals(r, seen, (x, n), v, c));
-            sums.add(col, 1.0 / e.dot(e).max(1e-8), xs);
+        for (j, v, _) in views_seeing(r, x, n) {
+            let px = super::reproject::project_px(r.data, j, x);
+            let col = super::maps::sample_bilinear(&r.maps.img[j], vw, vh, px);
+            let xs = [0, 1, 2].map(|c| lobe_originals(r, seen, (x, n), v, (c, None)));
+            sums.add(col, xs);
         }
         if let Some(planes) = sums.planes(seen) {
             for (k, v) in planes.into_iter().enumerate() {
@@ -277,56 +329,6 @@ pub fn sums_reference(r: &RefInputs, mesh: &Mesh, comp: &[[f32; 4]]) -> Vec<[f32
         }
     }
     out
-}
-
-/// The window's pooled (Σ|X − X̄|² per lobe, Σ(X − X̄)·(I − Ī) per lobe, Σ|I − Ī|², spread) at
-/// pixel p: its 5×5 neighbours on the same surface that hold sums.
-fn pooled(r: &RefInputs, sums: &[[f32; 4]], p: usize) -> ([f32; 4], [f32; 4], f32, f32) {
-    let npix = (r.width * r.height) as usize;
-    let (mut cxx, mut cxi, mut cii, mut spread) = ([0f32; 4], [0f32; 4], 0.0, 0.0);
-    for q in same_surface(r, p, RADIUS).filter(|&q| sums[2 * npix + q][1] != 0.0) {
-        for c in 0..LOBES {
-            cxx[c] += sums[q][c];
-            cxi[c] += sums[npix + q][c];
-        }
-        cii += sums[2 * npix + q][0];
-        spread += sums[2 * npix + q][3];
-    }
-    (cxx, cxi, cii, spread)
-}
-
-/// Each lobe's strength w_c = κ·ω_c·s_c at pixel p from the pooled sums (`glossy.comp`'s
-/// `lobe_strengths`): s_c the lobe's slope, e_c the share of the variance it explains, ω_c ∝
-/// max(e_c − GLOSSY_FIT, 0)⁴, κ = clamp((max e − GLOSSY_FIT) / GLOSSY_FIT_RAMP, 0, 1); None
-/// without a fit.
-fn strengths(r: &RefInputs, sums: &[[f32; 4]], p: usize) -> Option<[f32; LOBES]> {
-    let (cxx, cxi, cii, spread) = pooled(r, sums, p);
-    if cii <= spread.max(1e-8) {
-        return None;
-    }
-    let (mut s, mut om, mut best) = ([0f32; LOBES], [0f32; LOBES], 0f32);
-    for c in 0..LOBES {
-        if cxx[c] <= 1e-8 {
-            continue;
-        }
-        s[c] = (cxi[c] / cxx[c]).max(0.0);
-        if s[c] > lobe_s_max(c) {
-            s[c] = 0.0;
-            continue;
-        }
-        let e = (2.0 * s[c] * cxi[c] - s[c] * s[c] * cxx[c]) / cii;
-        // What the lobe explains must itself exceed the spread threshold.
-        if s[c] > 0.0 && e * cii > spread {
-            om[c] = (e - GLOSSY_FIT).max(0.0).powi(4);
-            best = best.max(e);
-        }
-    }
-    let total: f32 = om.iter().sum();
-    if total <= 0.0 {
-        return None;
-    }
-    let kappa = ((best - GLOSSY_FIT) / GLOSSY_FIT_RAMP).clamp(0.0, 1.0);
-    Some([0, 1, 2].map(|c| kappa * s[c] * om[c] / total))
 }
 
 /// What remains of the photos' own highlights at pixel p: 1 − α_dim, or with per-light factors
@@ -356,13 +358,13 @@ impl SurfaceFit<'_> {
 }
 
 /// CPU reference of the layer pass: 2 planes of `width × height` vec4, from the frame's
-/// composites (I_1, I_8), glossy sums and irradiance planes (E_src, E_add, E_rem) as the passes
-/// wrote them, and the surface fit.
+/// composites (I_1, I_8) and irradiance planes (E_src, E_add, E_rem) as the passes wrote them,
+/// and the surface fit.
 pub fn reference(
     r: &RefInputs,
     mesh: &Mesh,
     comp: &[[f32; 4]],
-    (sums, irr): (&[[f32; 4]], &[[f32; 4]]),
+    irr: &[[f32; 4]],
     fit: &SurfaceFit,
 ) -> Vec<[f32; 4]> {
     let npix = (r.width * r.height) as usize;
@@ -373,27 +375,18 @@ pub fn reference(
             continue;
         };
         out[p] = [i1.x, i1.y, i1.z, 0.0];
-        // The surface's fit, else the pixel's own (`glossy.comp`'s order).
-        let any = |w: &[f32; LOBES]| w.iter().any(|&v| v > 0.0);
-        let own = || {
-            (sums[2 * npix + p][1] != 0.0)
-                .then(|| strengths(r, sums, p))
-                .flatten()
-        };
-        let Some(mut w) = fit.at(p).filter(any).or_else(own).filter(any) else {
+        let Some(mut w) = fit.at(p).filter(|w| w.iter().any(|&v| v > 0.0)) else {
             continue;
         };
+        let n = smooth_normal(r, p, n);
         // At most GLOSSY_SHARE of I_1's luminance is called view-dependent, and D stays at or
         // above the darkest photo (I_8).
-        let xm: Vec3 = (0..LOBES)
-            .map(|c| w[c] * Vec3::from_slice(&sums[(3 + c) * npix + p][..3]))
-            .sum();
+        let xm = photos_part(r, mesh, (x, n), w);
         let lum = super::reproject::luminance;
         let cap = (GLOSSY_SHARE * lum(i1) / lum(xm).max(1e-8)).min(1.0);
         w = w.map(|v| v * cap);
         let i8 = Vec3::from_slice(&comp[7 * npix + p][..3]);
         let d = (i1 - cap * xm).max(i8.min(i1)).max(Vec3::ZERO);
-        let n = smooth_normal(r, p, n);
         let st = kept(r, irr, p) * (i1 - d) + lamps(r, mesh, (x, n), w);
         let lead = (0..LOBES).fold(0, |b, c| if w[c] > w[b] { c } else { b });
         out[p] = [d.x, d.y, d.z, w.iter().sum()];
@@ -402,8 +395,8 @@ pub fn reference(
     out
 }
 
-/// Σ_L i_L Σ_c w_c·X_L,c: the lit lamps x sees through the lobes around the novel view's
-/// mirror direction.
+/// Σ_L i_L Σ_c X_L,c(w_c): the lit lamps x sees through the lobes of the fitted strengths
+/// (`lobe_reflect`) around the novel view's mirror direction.
 fn lamps(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> Vec3 {
     let v = (r.eye - x).normalize();
     let mut s = Vec3::ZERO;
@@ -411,7 +404,7 @@ fn lamps(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> V
         let k = r.intensities.get(l).copied().unwrap_or(0.0);
         if k > 0.0 && sees_light(mesh, x, n, e) {
             for c in (0..LOBES).filter(|&c| w[c] > 0.0) {
-                s += w[c] * k * lobe_light(x, v, n, lobe_width(c), e);
+                s += k * lobe_light(x, v, n, (lobe_width(c), Some(w[c])), e);
             }
         }
     }

@@ -1,8 +1,8 @@
 //! The view-dependent layer's fit per surface (§3: S belongs to a material, not to a pixel).
 //!
-//! A pixel's own fit (`glossy.comp`, pooled over 5×5 pixels) holds only where some photo's
-//! mirror direction meets an original light near that pixel: on the demo room's floor 7 % of
-//! the pixels, and not where a new lamp's highlight falls. A floor is one material, so its
+//! A fit per pixel (pooled over 5×5 pixels, session 24) holds only where some photo's mirror
+//! direction meets an original light near that pixel: on the demo room's floor 7 % of the
+//! pixels, and not where a new lamp's highlight falls. A floor is one material, so its
 //! strength can come from every photo that shows a highlight anywhere on it.
 //!
 //! How. The frame's sums pass (`glossy_sums.comp`) runs from up to `FIT_VIEWS` input cameras
@@ -13,7 +13,7 @@
 //! add up: the pooled fit is one strength per lobe with a diffuse part per pixel. The lobe
 //! with the largest t statistic (slope over its standard error) wins if that exceeds
 //! `GLOSSY_REGION_T`; otherwise the patch has none. The result is one vec4 per triangle
-//! (w_1..3, t), which `glossy.comp` uses where a pixel has no fit of its own.
+//! (w_1..3, t), which `glossy.comp` reads through the G-buffer's triangle ids.
 
 use std::collections::HashMap;
 
@@ -67,20 +67,24 @@ impl FitSums {
         self.albedo / self.pixels.max(1.0)
     }
 
-    /// Each lobe's strength (one lobe at most) and the winner's t statistic: s_c = Σxi/Σxx, ≥ 0
-    /// and at most `glossy::lobe_s_max(c)` (else the lobe is out), t_c = s_c·√(Σxx/σ²), σ² the residual per degree of freedom (samples
-    /// less one mean per pixel).
+    /// Each lobe's strength (one lobe at most) and the winner's t statistic: s_c = Σxi/Σxx, ≥ 0,
+    /// t_c = s_c·√(Σxx/σ²), σ² the residual per degree of freedom (samples less one mean per
+    /// pixel). A lobe is out when its slope exceeds `glossy::lobe_s_max(c)`, and a lobe wider
+    /// than the narrowest when the narrowest's slope is larger than its own (the highlights are
+    /// sharper than the narrowest lobe) and a still wider lobe's slope is over its cap (they are
+    /// stronger than a rough dielectric's): a near-mirror, such as hand_room2's mirror, whose
+    /// patches took the middle lobe by chance and glowed around the lamp at oblique views.
     pub fn strengths(&self) -> [f32; 4] {
         let dof = (self.samples - self.pixels - 1.0).max(1.0);
+        let slope = |c: usize| (self.xi[c] / self.xx[c].max(1e-12)).max(0.0);
+        let over = |c: usize| self.xx[c] > 1e-12 && slope(c) > glossy::lobe_s_max(c);
         let mut best = [0f32; 4];
         for c in 0..LOBES {
-            if self.xx[c] <= 1e-12 {
+            let mirror = c > 0 && slope(0) > slope(c) && (c + 1..LOBES).any(over);
+            if self.xx[c] <= 1e-12 || over(c) || mirror {
                 continue;
             }
-            let s = (self.xi[c] / self.xx[c]).max(0.0);
-            if s > glossy::lobe_s_max(c) {
-                continue;
-            }
+            let s = slope(c);
             let var = (self.ii - s * self.xi[c]).max(1e-12) / dof;
             let t = s * (self.xx[c] / var).sqrt();
             if t > best[3] {
@@ -322,7 +326,7 @@ pub(super) fn fit(r: &mut Renderer) -> Result<Vec<[f32; 4]>> {
 fn gather(r: &mut Renderer, lighting: &Lighting, acc: &mut [FitSums]) -> Result<()> {
     for j in fit_views(r.scene.data.cameras.len(), r.exclude) {
         let cam = at_width(&r.scene.data.cameras[j], FIT_WIDTH.min(r.scene.views.width));
-        r.render(&cam, lighting, Mode::Glossy, 1.0, None)?;
+        r.render_glossy_sums(&cam, lighting)?;
         let b = r.buffers_ref().expect("a frame was rendered");
         let npix = (b.width * b.height) as usize;
         let sums: Vec<[f32; 4]> = b.glossy_sums.download_vec()?;
@@ -335,6 +339,15 @@ fn gather(r: &mut Renderer, lighting: &Lighting, acc: &mut [FitSums]) -> Result<
 }
 
 impl Renderer {
+    /// Renders the sums pass (`glossy_sums.comp`) at `cam` under `lighting` instead of the
+    /// layer, as the fit's renders do; read them in the buffers' `glossy_sums`.
+    pub fn render_glossy_sums(&mut self, cam: &Camera, lighting: &Lighting) -> Result<()> {
+        let fitting = std::mem::replace(&mut self.fitting, true);
+        let res = self.render(cam, lighting, Mode::Glossy, 1.0, None);
+        self.fitting = fitting;
+        res
+    }
+
     /// Makes the view-dependent fit per surface for the views the frames use, unless it is
     /// made or being made (its own renders come here too, and bind zeros meanwhile).
     pub(super) fn ensure_glossy_fit(&mut self) -> Result<()> {
@@ -472,5 +485,31 @@ mod tests {
         assert_eq!(sums(weak, 0.3).strengths(), [0.0; 4]);
         let f = sums(strong, 0.3).strengths();
         assert!((f[1] - strong).abs() < 1e-4 && (f[3] - t(strong)).abs() < 0.05 * t(strong));
+    }
+
+    /// A near-mirror: the narrowest lobe's slope is above the middle one's and the widest one's
+    /// is over its cap, so the middle lobe, though it explains the views best, is out and the
+    /// narrowest takes the surface.
+    #[test]
+    fn a_near_mirror_takes_the_narrowest_lobe() {
+        // Slopes 0.4, 0.32, 0.3; t 21, 64, 14: lobe 2 explains the views best, but lobe 3's
+        // slope is over its cap (0.16).
+        let mut f = FitSums {
+            xx: [100.0, 400.0, 100.0],
+            xi: [40.0, 128.0, 30.0],
+            ii: 50.0,
+            samples: 1000.0,
+            pixels: 100.0,
+            albedo: Vec3::splat(30.0),
+        };
+        let w = f.strengths();
+        assert_eq!((w[1], w[2]), (0.0, 0.0), "{w:?}");
+        assert!((w[0] - 0.4).abs() < 1e-6, "{w:?}");
+        // Without the over-cap lobe the middle one wins, and so it does with highlights wider
+        // than the narrowest lobe (its slope 0.2, below the middle one's).
+        f.xi[2] = 10.0;
+        assert!(f.strengths()[1] > 0.0, "{:?}", f.strengths());
+        (f.xi[0], f.xi[2]) = (20.0, 30.0);
+        assert!(f.strengths()[1] > 0.0, "{:?}", f.strengths());
     }
 }

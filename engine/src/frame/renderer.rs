@@ -255,9 +255,12 @@ impl Renderer {
                 g.dispatch("target mirror", &self.target_mirror, mirror, threads)?;
             }
             if self.runs_glossy(mode) {
-                let gl = bytes_of(&push.glossy);
-                g.dispatch("glossy sums", &self.glossy_sums, gl, threads)?;
-                g.dispatch("glossy layer", &self.glossy, gl, threads)?;
+                // The sums only feed the fit per surface (frame/glossy_fit.rs).
+                let (name, pass) = match self.fitting {
+                    true => ("glossy sums", &self.glossy_sums),
+                    false => ("glossy layer", &self.glossy),
+                };
+                g.dispatch(name, pass, bytes_of(&push.glossy), threads)?;
             }
             if inputs {
                 g.dispatch(
