@@ -101,7 +101,7 @@ fn room() -> Room {
                 let g = match s {
                     Some((x, n)) if n.y > 0.9 && glossy::sees_light(&mesh, *x, *n, &gpanel) => {
                         let v = (c.center() - *x).normalize();
-                        S_TRUE * glossy::lobe_light(*x, v, *n, (GLOSSY_LOBE_2, None), &gpanel)
+                        S_TRUE * glossy::lobe_light(*x, v, *n, GLOSSY_LOBE_2, &gpanel)
                     }
                     _ => Vec3::ZERO,
                 };

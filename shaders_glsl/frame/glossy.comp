@@ -3,12 +3,12 @@
 // surface (`surface_fit`, per triangle through g_tri: frame/glossy_fit.rs pooled every photo of
 // that surface and material once per scene); where the surface has none the layer is today's
 // image (D = I_1, S = 0: ratio's).
-// The photos' view-dependent part in I_1 is Σ_c X̄_c(w_c): the original lights x sees through
-// lobe c of strength w_c (lobe.glsl's `lobe_reflect`) from each input view that sees x,
-// averaged under I_1's own view weights (`photos_part`); it is lowered where it would exceed
-// GLOSSY_SHARE of I_1, and D = I_1 minus it, but never below the darkest photo of x (I_8: every
-// photo holds D plus a non-negative view-dependent part).
-// S = k·(I_1 − D) + Σ_L i_L Σ_c X_L,c(w_c): the photos' own highlights as they are, dimmed with
+// The photos' view-dependent part in I_1 is Σ_c w_c·X̄_c: the original lights x sees through
+// lobe c (lobe.glsl) from each input view that sees x, averaged under I_1's own view weights
+// (`photos_part`); it is lowered where it would exceed GLOSSY_SHARE of I_1, and D = I_1 minus
+// it, but never below the darkest photo of x (I_8: every photo holds D plus a non-negative
+// view-dependent part).
+// S = k·(I_1 − D) + Σ_L i_L Σ_c w_c·X_L,c: the photos' own highlights as they are, dimmed with
 // their lights (eq. 5 would scale them by the diffuse ratio; k = 1 − α_dim, or with per-light
 // factors what remains of E_src, 1 − E_rem / E_src: a highlight is taken to come from the
 // original lights in the shares their diffuse light does), plus each lit lamp x sees through
@@ -45,8 +45,8 @@ layout(push_constant) uniform Push {
 
 #include "lobe.glsl"
 
-// Σ_L i_L Σ_c X_L,c(w_c): the lit lamps x (normal n) sees, through the lobes of strength w
-// (`lobe_reflect`) seen from unit v.
+// Σ_L i_L Σ_c w_c·X_L,c: the lit lamps x (normal n) sees, through the lobes of strength w seen
+// from unit v.
 vec3 lamps(vec3 x, vec3 n, vec3 v, vec3 w) {
     vec3 s = vec3(0.0);
     for (uint l = 0u; l < pc.nlights; ++l) {
@@ -57,13 +57,13 @@ vec3 lamps(vec3 x, vec3 n, vec3 v, vec3 w) {
         if (omega <= 0.0) continue;
         float k = 0.0;
         for (uint c = 0u; c < LOBES; ++c)
-            if (w[c] > 0.0) k += lobe_reflect(lobe_width(c), omega, wl, v, n, w[c]);
+            if (w[c] > 0.0) k += w[c] * lobe_weight(lobe_width(c), omega, wl, v, n);
         s += intensity[l] * emitters[l].radiance.rgb * k;
     }
     return s;
 }
 
-// Σ_c X̄_c(w_c): the original lights x (normal n) sees, through the fitted lobes from each input
+// Σ_c w_c·X̄_c: the original lights x (normal n) sees, through the fitted lobes from each input
 // view that sees x and is not grazing (as the sums pass takes them), averaged under I_1's view
 // weights 1/|eye − c_j|². Zero where fewer than GLOSSY_MIN_VIEWS views see x.
 vec3 photos_part(vec3 x, vec3 n, vec3 w) {

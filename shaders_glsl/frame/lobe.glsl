@@ -56,38 +56,21 @@ void light_seen(vec3 x, Light l, out float omega, out vec3 w) {
 }
 
 // A microfacet lobe of GGX roughness α lit by a light of solid angle Ω in unit direction w,
-// seen from unit direction v over normal n, without its Fresnel term: Ω·D(n·h)/(4·n·v), h the
-// half vector, D the GGX distribution with α widened by the light's size (α'² = α² + Ω/8π: the
-// light's disk, of radius √(Ω/π), halves in half-vector space); `vh` = v·h. Shadowing is left
-// to the strength. Zero from views more grazing than GLOSSY_COS_MIN (the sums pass skips them).
-float lobe_shape(float alpha, float omega, vec3 w, vec3 v, vec3 n, out float vh) {
+// seen from unit direction v over normal n: Ω·D(n·h)·F(v·h)/(4·n·v·F0), h the half vector, D
+// the GGX distribution with α widened by the light's size (α'² = α² + Ω/8π: the light's disk,
+// of radius √(Ω/π), halves in half-vector space), F Schlick's Fresnel of a dielectric (F0 =
+// 0.04; the fitted strength s then reads as F0/0.04: 1 for plastic, lacquer, a TV). Shadowing
+// is left to s. Zero from views more grazing than GLOSSY_COS_MIN (the sums pass skips them).
+float lobe_weight(float alpha, float omega, vec3 w, vec3 v, vec3 n) {
     const float PI = 3.14159265358979;
-    vh = 1.0;
     float cv = dot(n, v);
     if (cv < GLOSSY_COS_MIN || dot(n, w) <= 0.0) return 0.0;
     float a2 = alpha * alpha + omega / (8.0 * PI);
     vec3 h = normalize(w + v);
     float ch = max(dot(n, h), 0.0);
     float t = ch * ch * (a2 - 1.0) + 1.0;
-    vh = clamp(dot(v, h), 0.0, 1.0);
-    return omega * a2 / (PI * t * t) / (4.0 * cv);
-}
-
-// The fit's regressor: the lobe with Schlick's Fresnel of a dielectric over its F0 (0.04),
-// F(v·h)/F0, so that a fitted strength s reads as the surface's F0.
-float lobe_weight(float alpha, float omega, vec3 w, vec3 v, vec3 n) {
-    float vh;
-    float g = lobe_shape(alpha, omega, w, v, n, vh);
-    return g * (1.0 + (1.0 / 0.04 - 1.0) * pow(1.0 - vh, 5.0));
-}
-
-// The lobe of fitted strength s as it reflects: Schlick's Fresnel with F0 = s, s + (1 − s)(1 −
-// v·h)⁵. A dielectric (s = 0.04) gives s·lobe_weight; a metal or mirror (s near 1) hardly
-// brightens at grazing views, where s·lobe_weight would grow it up to 25-fold.
-float lobe_reflect(float alpha, float omega, vec3 w, vec3 v, vec3 n, float s) {
-    float vh;
-    float g = lobe_shape(alpha, omega, w, v, n, vh);
-    return g * (s + (1.0 - s) * pow(1.0 - vh, 5.0));
+    float f = 1.0 + (1.0 / 0.04 - 1.0) * pow(1.0 - clamp(dot(v, h), 0.0, 1.0), 5.0);
+    return omega * a2 / (PI * t * t) * f / (4.0 * cv);
 }
 
 // Light l's radiance seen from x (normal n) from unit direction v through lobe α.
@@ -134,8 +117,8 @@ void lobe_originals(vec3 x, vec3 v, vec3 n, uint seen, out vec3 xs[LOBES]) {
     }
 }
 
-// The original lights x (normal n) sees (bit l of `seen`) through the lobes of strength w
-// (`lobe_reflect`) from unit view direction v (lobes of no strength skipped).
+// Σ_c w_c·X_c: the original lights x (normal n) sees (bit l of `seen`) through the lobes of
+// strength w from unit view direction v (lobes of no strength skipped).
 vec3 lobes_originals(vec3 x, vec3 v, vec3 n, uint seen, vec3 w) {
     vec3 s = vec3(0.0);
     for (uint l = 0u; l < min(pc.norig, MAX_ORIG); ++l) {
@@ -147,7 +130,7 @@ vec3 lobes_originals(vec3 x, vec3 v, vec3 n, uint seen, vec3 w) {
         if (omega <= 0.0) continue;
         float k = 0.0;
         for (uint c = 0u; c < LOBES; ++c)
-            if (w[c] > 0.0) k += lobe_reflect(lobe_width(c), omega, wl, v, n, w[c]);
+            if (w[c] > 0.0) k += w[c] * lobe_weight(lobe_width(c), omega, wl, v, n);
         s += o.radiance.rgb * k;
     }
     return s;

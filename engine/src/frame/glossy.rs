@@ -91,38 +91,21 @@ pub fn sees_light(mesh: &Mesh, x: Vec3, n: Vec3, l: &GpuLight) -> bool {
     !crate::cpu::occluded(mesh, x + n * 1e-3, d / dist, 1e-3, dist - 0.05)
 }
 
-/// The GGX lobe of roughness α lit by solid angle Ω from unit w, seen from unit v over normal
-/// n, without its Fresnel term (`lobe.glsl`'s `lobe_shape`): Ω·D(n·h)/(4·n·v), α widened to
-/// α'² = α² + Ω/8π, and v·h; zero below GLOSSY_COS_MIN.
-fn lobe_shape(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> (f32, f32) {
+/// The GGX lobe of roughness α that light l (solid angle Ω, unit direction w from x) gives
+/// towards unit v over normal n (`lobe.glsl`'s `lobe_weight`): Ω·D(n·h)·F(v·h)/(4·n·v·F0), α
+/// widened to α'² = α² + Ω/8π, F Schlick's with F0 = 0.04; zero below GLOSSY_COS_MIN.
+pub fn lobe_weight(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> f32 {
     use std::f32::consts::PI;
     let cv = n.dot(v);
     if cv < GLOSSY_COS_MIN || n.dot(w) <= 0.0 {
-        return (0.0, 1.0);
+        return 0.0;
     }
     let a2 = alpha * alpha + omega / (8.0 * PI);
     let h = (w + v).normalize();
     let ch = n.dot(h).max(0.0);
     let t = ch * ch * (a2 - 1.0) + 1.0;
-    (
-        omega * a2 / (PI * t * t) / (4.0 * cv),
-        v.dot(h).clamp(0.0, 1.0),
-    )
-}
-
-/// The fit's regressor (`lobe_weight`): the lobe with Schlick's Fresnel of a dielectric over its
-/// F0, F(v·h)/0.04, so that a fitted strength reads as the surface's F0.
-pub fn lobe_weight(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> f32 {
-    let (g, vh) = lobe_shape(alpha, omega, w, v, n);
-    g * (1.0 + (1.0 / 0.04 - 1.0) * (1.0 - vh).powi(5))
-}
-
-/// The lobe of fitted strength s as it reflects (`lobe_reflect`): Schlick's Fresnel with F0 = s
-/// (a metal or mirror hardly brightens at grazing views; a dielectric, s = 0.04, gives
-/// s·`lobe_weight`).
-pub fn lobe_reflect(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3, s: f32) -> f32 {
-    let (g, vh) = lobe_shape(alpha, omega, w, v, n);
-    g * (s + (1.0 - s) * (1.0 - vh).powi(5))
+    let f = 1.0 + (1.0 / 0.04 - 1.0) * (1.0 - v.dot(h).clamp(0.0, 1.0)).powi(5);
+    omega * a2 / (PI * t * t) * f / (4.0 * cv)
 }
 
 /// Light l's solid angle from x (0 from behind) and the unit direction to its centre.
@@ -142,17 +125,13 @@ fn light_seen(x: Vec3, l: &GpuLight) -> (f32, Vec3) {
 }
 
 /// Light l's radiance seen from x (normal n) from unit direction v through the lobe of GGX
-/// roughness α: the fit's regressor, or with `Some(s)` the lobe of strength s as it reflects.
-pub fn lobe_light(x: Vec3, v: Vec3, n: Vec3, (alpha, s): (f32, Option<f32>), l: &GpuLight) -> Vec3 {
+/// roughness α.
+pub fn lobe_light(x: Vec3, v: Vec3, n: Vec3, alpha: f32, l: &GpuLight) -> Vec3 {
     let (omega, w) = light_seen(x, l);
     if omega <= 0.0 {
         return Vec3::ZERO;
     }
-    let k = match s {
-        None => lobe_weight(alpha, omega, w, v, n),
-        Some(s) => lobe_reflect(alpha, omega, w, v, n, s),
-    };
-    Vec3::from_slice(&l.radiance[..3]) * k
+    Vec3::from_slice(&l.radiance[..3]) * lobe_weight(alpha, omega, w, v, n)
 }
 
 /// Planes of the sums pass: Σ|X − X̄|² and Σ(X − X̄)·(I − Ī) per lobe, (Σ|I − Ī|², views,
@@ -244,18 +223,11 @@ fn seen_originals(r: &RefInputs, mesh: &Mesh, x: Vec3, n: Vec3) -> u32 {
         .fold(0, |m, (l, _)| m | 1 << l)
 }
 
-/// The seen original lights through lobe c, seen from unit v over normal n: the fit's
-/// regressor, or with `Some(s)` the lobe of strength s as it reflects.
-fn lobe_originals(
-    r: &RefInputs,
-    seen: u32,
-    (x, n): (Vec3, Vec3),
-    v: Vec3,
-    (c, s): (usize, Option<f32>),
-) -> Vec3 {
+/// The seen original lights through lobe c, seen from unit v over normal n.
+fn lobe_originals(r: &RefInputs, seen: u32, (x, n): (Vec3, Vec3), v: Vec3, c: usize) -> Vec3 {
     (r.originals.iter().take(MAX_ORIG).enumerate())
         .filter(|(l, _)| seen & (1 << l) != 0)
-        .map(|(_, o)| lobe_light(x, v, n, (lobe_width(c), s), &o.light))
+        .map(|(_, o)| lobe_light(x, v, n, lobe_width(c), &o.light))
         .sum()
 }
 
@@ -276,8 +248,8 @@ fn views_seeing<'a>(
     })
 }
 
-/// Σ_c X̄_c(w_c) at x (`glossy.comp`'s `photos_part`): the seen original lights through the
-/// lobes of the fitted strengths (`lobe_reflect`) from each view that sees x, under I_1's view weights; zero under
+/// Σ_c w_c·X̄_c at x (`glossy.comp`'s `photos_part`): the seen original lights through the
+/// fitted lobes from each view that sees x, under I_1's view weights; zero under
 /// GLOSSY_MIN_VIEWS views.
 fn photos_part(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> Vec3 {
     let seen = seen_originals(r, mesh, x, n);
@@ -288,7 +260,7 @@ fn photos_part(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]
     for (_, v, w1) in views_seeing(r, x, n) {
         let xs: Vec3 = (0..LOBES)
             .filter(|&c| w[c] > 0.0)
-            .map(|c| lobe_originals(r, seen, (x, n), v, (c, Some(w[c]))))
+            .map(|c| w[c] * lobe_originals(r, seen, (x, n), v, c))
             .sum();
         sx += w1 * xs;
         sw += w1;
@@ -319,7 +291,7 @@ pub fn sums_reference(r: &RefInputs, mesh: &Mesh, comp: &[[f32; 4]]) -> Vec<[f32
         for (j, v, _) in views_seeing(r, x, n) {
             let px = super::reproject::project_px(r.data, j, x);
             let col = super::maps::sample_bilinear(&r.maps.img[j], vw, vh, px);
-            let xs = [0, 1, 2].map(|c| lobe_originals(r, seen, (x, n), v, (c, None)));
+            let xs = [0, 1, 2].map(|c| lobe_originals(r, seen, (x, n), v, c));
             sums.add(col, xs);
         }
         if let Some(planes) = sums.planes(seen) {
@@ -395,8 +367,8 @@ pub fn reference(
     out
 }
 
-/// Σ_L i_L Σ_c X_L,c(w_c): the lit lamps x sees through the lobes of the fitted strengths
-/// (`lobe_reflect`) around the novel view's mirror direction.
+/// Σ_L i_L Σ_c w_c·X_L,c: the lit lamps x sees through the lobes around the novel view's
+/// mirror direction.
 fn lamps(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> Vec3 {
     let v = (r.eye - x).normalize();
     let mut s = Vec3::ZERO;
@@ -404,7 +376,7 @@ fn lamps(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> V
         let k = r.intensities.get(l).copied().unwrap_or(0.0);
         if k > 0.0 && sees_light(mesh, x, n, e) {
             for c in (0..LOBES).filter(|&c| w[c] > 0.0) {
-                s += k * lobe_light(x, v, n, (lobe_width(c), Some(w[c])), e);
+                s += w[c] * k * lobe_light(x, v, n, lobe_width(c), e);
             }
         }
     }
