@@ -268,13 +268,17 @@ fn every_push_struct_matches_its_shaders_block() {
             assert!(listed, "{s} has push constants but no push_layout! entry");
         }
     }
-    // The reader finds real offsets: output.glsl's push block, whose `cam` starts at 16 bytes
-    // and is read member by member (5 vec4s), `nlights` after it.
-    let r = gpu::reflect(shaders::FRAME_OUTPUT).unwrap();
+    // The reader finds real offsets: bake/surface_cache.comp's push block, whose `light` starts
+    // at 32 bytes and is read member by member (4 vec4s).
+    let r = gpu::reflect(shaders::BAKE_SURFACE_CACHE).unwrap();
     assert_eq!(
-        &r.push_offsets[..10],
-        &[0, 4, 8, 12, 16, 32, 48, 64, 80, 96]
+        &r.push_offsets[..],
+        &[0, 4, 8, 12, 16, 20, 24, 32, 48, 64, 80]
     );
+    // The frame passes share one block (frame/frame_constants.glsl) within the 128 bytes
+    // Vulkan guarantees.
+    let frame = gpu::reflect(shaders::FRAME_REPROJECT).unwrap().push_size;
+    assert!(frame <= 128, "the frame's constants take {frame} bytes");
 }
 
 #[test]

@@ -14,7 +14,7 @@ layout(set = 0, binding = 14) readonly buffer Irr { vec4 irr[]; };       // 3 pl
 layout(set = 0, binding = 15) readonly buffer Mirror { vec4 mirror[]; }; // 1 plane
 layout(set = 0, binding = 16) writeonly buffer NetIn { ACT4 t[]; };
 
-layout(push_constant) uniform Push { vec4 eye; uint width; uint height; } pc;
+#include "frame_constants.glsl"
 
 const uint GROUPS = (IN_CHANNELS + 3u) / 4u;  // padded to a multiple of 4
 const float PI = 3.14159265358979;

@@ -37,11 +37,7 @@ layout(set = 0, binding = 30) writeonly buffer Glossy { vec4 glossy[]; };
 layout(set = 0, binding = 20, r32ui) readonly uniform uimage2D g_tri;
 layout(set = 0, binding = 33) readonly buffer GlossyFit { vec4 surface_fit[]; };  // per triangle
 
-layout(push_constant) uniform Push {
-    vec4 eye;
-    uint width; uint height; uint nactive; uint view_w; uint view_h;
-    uint nlights; uint norig; float alpha_dim; uint per_light;
-} pc;
+#include "frame_constants.glsl"
 
 #include "lobe.glsl"
 

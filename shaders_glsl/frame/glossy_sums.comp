@@ -27,11 +27,7 @@ layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
 layout(set = 0, binding = 13) readonly buffer Comp { f16vec4 comp[]; };
 layout(set = 0, binding = 31) writeonly buffer GlossySums { vec4 sums[]; };
 
-layout(push_constant) uniform Push {
-    vec4 eye;
-    uint width; uint height; uint nactive; uint view_w; uint view_h;
-    uint nlights; uint norig; float alpha_dim; uint per_light;
-} pc;
+#include "frame_constants.glsl"
 
 #include "lobe.glsl"
 

@@ -26,13 +26,7 @@ layout(set = 0, binding = 20, r32ui) readonly uniform uimage2D g_tri;
 #include "live.glsl"
 layout(set = 0, binding = 13) writeonly buffer Irr { vec4 irr[]; };
 
-layout(push_constant) uniform Push {
-    vec4 eye;
-    uint width; uint height; uint nactive; uint view_w; uint view_h;
-    uint nviews; uint nlights; float alpha_dim;
-    uint nlive; uint live_mask;
-    uint norig; uint nsplit; uint split_layer; uint per_light;
-} pc;
+#include "frame_constants.glsl"
 
 void main() {
     uint p = gl_GlobalInvocationID.x;

@@ -35,19 +35,11 @@ layout(set = 0, binding = 18) writeonly buffer Ldr { uint ldr[]; };
 layout(set = 0, binding = 26) readonly buffer NetIn { ACT4 x[]; };  // 66 channels, pack4
 layout(set = 0, binding = 30) readonly buffer Glossy { vec4 glossy[]; };  // (D, s), (S, lobe)
 
-layout(push_constant, scalar) uniform Push {
-    uint width; uint height; uint mode; float exposure;
-    Camera cam;      // the novel camera (for the rays towards the added lights)
-    uint nlights;
-    uint base;       // NetBase: 0 none, 1 ratio
-    float shrink;    // NetConfig::shrink (0: none)
-    float gate;      // NetConfig::gate (0: none)
-    uint gain;       // NetConfig::gain (1: the diffuse correction is a gain on the base)
-    float agree;     // NetConfig::agree (0: none)
-    uint norig;      // declared original lights (emitters.glsl)
-    float alpha_dim; // §4.1.4: 0 keeps the original lighting, 1 removes it
-    uint fill;       // 1: holes filled from the nearest covered pixels (`hole_fill`)
-} pc;
+// The novel camera (for the rays towards the added lights): a buffer, since its 80 bytes do not
+// fit in the frame's constants.
+layout(set = 0, binding = 34) readonly buffer NovelCamera { Camera novel_cam; };
+
+#include "frame_constants.glsl"
 
 const uint MODE_NETWORK = 0u;
 const uint MODE_ULR = 1u;
@@ -210,11 +202,11 @@ void main() {
             c = plain_image(p, npix);
         }
     }
-    vec3 eye = cam_center(pc.cam);
-    vec3 ray = normalize(cam_ray_dir(pc.cam, vec2(xy) + 0.5));
+    vec3 eye = cam_center(novel_cam);
+    vec3 ray = normalize(cam_ray_dir(novel_cam, vec2(xy) + 0.5));
     float t = xp.w > 0.0 ? distance(xp.xyz, eye) : 1e30;
     vec3 le;
-    float leak = LEAK_PX * xp.w / pc.cam.intrinsics.x;  // metres the pixel filter spreads glow
+    float leak = LEAK_PX * xp.w / novel_cam.intrinsics.x;  // metres the pixel filter spreads glow
     if (xp.w > 0.0 && original_light(xp.xyz, ray, pc.norig, pc.alpha_dim, vec3(comp[p].rgb),
                                      irr[npix + p].rgb, leak, le)) c = le;
     if (nearest_emitter(eye, ray, pc.nlights, t, le)) c = le;

@@ -26,10 +26,7 @@ layout(set = 0, binding = 7) uniform sampler2DArray tex_img;
 layout(set = 0, binding = 8) uniform sampler2DArray tex_msrc;
 layout(set = 0, binding = 13) writeonly buffer Comp { f16vec4 comp[]; };
 
-layout(push_constant) uniform Push {
-    vec4 eye;
-    uint width; uint height; uint nactive; uint view_w; uint view_h;
-} pc;
+#include "frame_constants.glsl"
 
 void put(uint i, vec4 v) { comp[i] = f16vec4(clamp(v, -65000.0, 65000.0)); }
 

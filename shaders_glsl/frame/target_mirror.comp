@@ -28,15 +28,7 @@ layout(set = 0, binding = 12) uniform accelerationStructureEXT tlas;
 layout(set = 0, binding = 13) writeonly buffer Mirror { vec4 mirror[]; };
 #include "live.glsl"
 
-layout(push_constant) uniform Push {
-    vec4 eye;
-    uint width; uint height; uint view_w; uint view_h;
-    uint nviews; uint nlights; float alpha_dim;
-    uint exclude;    // a view left out of the frame (0xFFFFFFFF: none)
-    uint nlive; uint live_mask;
-    uint norig;      // declared original lights (emitters.glsl)
-    uint nsplit; uint split_layer; uint per_light;   // per-light control (originals.glsl)
-} pc;
+#include "frame_constants.glsl"
 
 void main() {
     uint p = gl_GlobalInvocationID.x;

@@ -21,6 +21,9 @@ pub struct FrameBuffers {
     /// The layer's per-pixel sums over the views, which its pass pools ([`glossy`]).
     pub glossy_sums: Buffer,
     pub active: Buffer,
+    /// The novel camera (`NovelCamera`, a [`crate::scene::GpuCamera`]): the output pass's
+    /// rays, too large for [`super::FrameConstants`].
+    pub camera: Buffer,
     /// The view culling's visibility bits and grid points (host-readable).
     pub cull_seen: Buffer,
     pub cull_points: Buffer,
@@ -64,6 +67,10 @@ impl FrameBuffers {
             glossy: buf("frame glossy layer", glossy::PLANES as u64 * n * 16)?,
             glossy_sums: buf("frame glossy sums", glossy::SUM_PLANES as u64 * n * 16)?,
             active: buf("frame active views", MAX_ACTIVE as u64 * 4)?,
+            camera: buf(
+                "frame novel camera",
+                std::mem::size_of::<crate::scene::GpuCamera>() as u64,
+            )?,
             cull_seen: readable(
                 "view culling bits",
                 (view_cull::words(grid) * scene.views.count as usize * 4) as u64,

@@ -1,27 +1,12 @@
 //! The network's input (§4.4, §5.2): `shaders_glsl/frame/features.glsl`. The channel order (the
 //! CH_* rows of `engine/constants.table`) is the contract between the engine, `relit dump` and
-//! the trainer.
+//! the trainer. Its push constants are the frame's ([`super::FrameConstants`]).
 
 use super::RefInputs;
 use crate::constants::{
     CH_DISPARITY, CH_E_SRC, CH_I, CH_MIRROR_DIST, CH_M_TGT, CH_NORMAL, CH_VIEW_ANGLE, IN_CHANNELS,
 };
 use crate::gpu::shaders;
-
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct Push {
-    pub eye: [f32; 4],
-    pub width: u32,
-    pub height: u32,
-}
-
-/// Push as its shaders' push block declares it (tests/gpu.rs checks).
-pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
-    Push,
-    [shaders::FRAME_FEATURES, shaders::FRAME_FEATURES_F32],
-    [eye, width, height]
-);
 
 pub const SHADER_F16: crate::gpu::Shader = shaders::FRAME_FEATURES;
 pub const SHADER_F32: crate::gpu::Shader = shaders::FRAME_FEATURES_F32;

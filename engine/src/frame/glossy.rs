@@ -8,7 +8,8 @@
 //! (none: ratio's image); it gives the diffuse part D, which eq. 5 relights, and the
 //! view-dependent part S: the photos' own (I_1 − D), dimmed with their lights, plus each lit
 //! lamp through the lobes seen from the novel view. Glossy mode shows `D · (E_add + E_src − E_rem) / E_src + S`
-//! (`output.glsl`): ratio's image under the original lighting, and where no fit holds.
+//! (`output.glsl`): ratio's image under the original lighting, and where no fit holds. Both
+//! passes' push constants are the frame's ([`super::FrameConstants`]).
 
 use glam::Vec3;
 
@@ -20,29 +21,6 @@ use crate::constants::{
 };
 use crate::gpu::shaders;
 use crate::scene::Mesh;
-
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct Push {
-    pub eye: [f32; 4],
-    pub width: u32,
-    pub height: u32,
-    pub nactive: u32,
-    pub view_w: u32,
-    pub view_h: u32,
-    pub nlights: u32,
-    pub norig: u32,
-    pub alpha_dim: f32,
-    /// Whether some original light has a factor of its own ([`super::Lighting::per_light`]).
-    pub per_light: u32,
-}
-
-/// Push as its shaders' push block declares it (tests/gpu.rs checks).
-pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
-    Push,
-    [shaders::FRAME_GLOSSY, shaders::FRAME_GLOSSY_SUMS],
-    [eye, width, height, nactive, view_w, view_h, nlights, norig, alpha_dim, per_light]
-);
 
 pub const SHADER: crate::gpu::Shader = shaders::FRAME_GLOSSY;
 pub const SUMS_SHADER: crate::gpu::Shader = shaders::FRAME_GLOSSY_SUMS;
@@ -162,6 +140,7 @@ impl Sums {
     }
 
     /// The pixel's planes (`SUM_PLANES` vec4), None with fewer than GLOSSY_MIN_VIEWS views.
+    #[allow(clippy::needless_range_loop)]
     fn planes(&self, seen: u32) -> Option<[[f32; 4]; SUM_PLANES]> {
         if self.n < GLOSSY_MIN_VIEWS as f32 {
             return None;

@@ -1,4 +1,5 @@
 //! Irradiance composites `E_src`, `E_add`, `E_rem` (§4.3.3): `shaders_glsl/frame/irradiance.comp`.
+//! Its push constants are the frame's ([`super::FrameConstants`]).
 
 use crate::gpu::shaders;
 use glam::Vec3;
@@ -6,51 +7,6 @@ use glam::Vec3;
 use super::maps::sample_bilinear;
 use super::reproject::project_px;
 use super::RefInputs;
-
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct Push {
-    pub eye: [f32; 4],
-    pub width: u32,
-    pub height: u32,
-    pub nactive: u32,
-    pub view_w: u32,
-    pub view_h: u32,
-    pub nviews: u32,
-    pub nlights: u32,
-    pub alpha_dim: f32,
-    pub nlive: u32,
-    pub live_mask: u32,
-    /// Per-light control (frame/lighting.rs): the declared original lights, those with E_add
-    /// layers (0 or all), the first of those layers, and whether some has a factor of its own.
-    pub norig: u32,
-    pub nsplit: u32,
-    pub split_layer: u32,
-    pub per_light: u32,
-}
-
-/// Push as its shaders' push block declares it (tests/gpu.rs checks).
-pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
-    Push,
-    [shaders::FRAME_IRRADIANCE],
-    [
-        eye,
-        width,
-        height,
-        nactive,
-        view_w,
-        view_h,
-        nviews,
-        nlights,
-        alpha_dim,
-        nlive,
-        live_mask,
-        norig,
-        nsplit,
-        split_layer,
-        per_light
-    ]
-);
 
 pub const SHADER: crate::gpu::Shader = shaders::FRAME_IRRADIANCE;
 pub const PLANES: usize = 3;

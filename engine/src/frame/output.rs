@@ -2,63 +2,13 @@
 //! and view-dependent outputs in tonemapped space and inverts the tonemap; ULR mode shows the
 //! `I_1` composite; ratio mode relights it with eq. 5's pseudo-albedo rule. Linear HDR for EXR, exposure + sRGB in 8 bits for screens and PNG.
 //! In every mode, lit added lights in front of the surface are drawn, and declared original
-//! lights on it, dimmed by α_dim (`frame/emitters.glsl`, [`super::emitters`]).
+//! lights on it, dimmed by α_dim (`frame/emitters.glsl`, [`super::emitters`]). Its push
+//! constants are the frame's ([`super::FrameConstants`]: the mode, exposure, hole fill and the
+//! network's configuration among them); the novel camera it casts rays from comes in the
+//! `NovelCamera` buffer ([`super::FrameBuffers::camera`]), too large for them.
 
 use crate::constants::{E_FLOOR, GAIN_EPS};
 use crate::gpu::shaders;
-use crate::scene::GpuCamera;
-
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct Push {
-    pub width: u32,
-    pub height: u32,
-    pub mode: u32,
-    pub exposure: f32,
-    pub cam: GpuCamera,
-    pub nlights: u32,
-    /// [`crate::net::NetBase`]: 0 none, 1 ratio, 2 glossy.
-    pub base: u32,
-    /// [`crate::net::NetConfig::shrink`].
-    pub shrink: f32,
-    /// [`crate::net::NetConfig::gate`].
-    pub gate: f32,
-    /// [`crate::net::NetConfig::gain`]: 1 on, 0 off.
-    pub gain: u32,
-    /// [`crate::net::NetConfig::agree`].
-    pub agree: f32,
-    /// Declared original lights (drawn where seen, dimmed).
-    pub norig: u32,
-    pub alpha_dim: f32,
-    /// 1: holes take the mean of the nearest covered pixels along 8 directions ([`fill_holes`]).
-    pub fill: u32,
-}
-
-/// Push as its shaders' push block declares it (tests/gpu.rs checks).
-pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
-    Push,
-    [shaders::FRAME_OUTPUT, shaders::FRAME_OUTPUT_F32],
-    [
-        width,
-        height,
-        mode,
-        exposure,
-        cam.r0,
-        cam.r1,
-        cam.r2,
-        cam.intrinsics,
-        cam.size_clip,
-        nlights,
-        base,
-        shrink,
-        gate,
-        gain,
-        agree,
-        norig,
-        alpha_dim,
-        fill
-    ]
-);
 
 pub const SHADER_F16: crate::gpu::Shader = shaders::FRAME_OUTPUT;
 pub const SHADER_F32: crate::gpu::Shader = shaders::FRAME_OUTPUT_F32;

@@ -1,11 +1,13 @@
-//! The frame's renderer: its pipelines, per-resolution buffers, push constants, and the
+//! The frame's renderer: its pipelines, per-resolution buffers, the frame's constants (one
+//! [`FrameConstants`] push block for every pass but view culling, filled once a frame), and the
 //! passes of one frame recorded in order through a [`Graph`].
 
 use std::sync::Arc;
 
+use super::constants::mode_code;
 use super::{
     features, glossy, irradiance, live, output, reproject, target_mirror, view_cull, FrameBuffers,
-    FrameScene, Lighting, Mode,
+    FrameConstants, FrameScene, Lighting, Mode,
 };
 use crate::bake::GpuLight;
 use crate::error::{Error, Result};
@@ -54,16 +56,6 @@ pub struct Renderer {
     pub(super) glossy_fit: Option<(Option<u32>, Buffer)>,
     pub(super) fitting: bool,
     zero_fit: Buffer,
-}
-
-/// The push constants of one frame's passes.
-struct Pushes {
-    reproject: reproject::Push,
-    irradiance: irradiance::Push,
-    target_mirror: target_mirror::Push,
-    glossy: glossy::Push,
-    features: features::Push,
-    output: output::Push,
 }
 
 /// The novel view's G-buffer, as the frame's passes name it.
@@ -225,7 +217,9 @@ impl Renderer {
         b.intensity.upload(bytemuck::cast_slice(&ints))?;
         let keep = lighting.keep_buffer(self.scene.originals.len());
         b.keep.upload(bytemuck::cast_slice(&keep))?;
-        let push = self.pushes(cam, lighting, mode, exposure);
+        b.camera.upload(bytes_of(&cam.to_gpu(NEAR, FAR)))?;
+        let fc = self.frame_constants(cam, lighting, mode, exposure);
+        let push = bytes_of(&fc);
         let threads = (cam.width * cam.height, 1, 1);
         // The passes that only feed the network (see `display_only`).
         let inputs = mode.needs_network() || !self.display_only;
@@ -238,21 +232,10 @@ impl Renderer {
             } else {
                 self.record_gbuffer(&mut g, b, cam)?;
             }
-            g.dispatch(
-                "reproject",
-                &self.reproject,
-                bytes_of(&push.reproject),
-                threads,
-            )?;
-            g.dispatch(
-                "irradiance",
-                &self.irradiance,
-                bytes_of(&push.irradiance),
-                threads,
-            )?;
+            g.dispatch("reproject", &self.reproject, push, threads)?;
+            g.dispatch("irradiance", &self.irradiance, push, threads)?;
             if inputs {
-                let mirror = bytes_of(&push.target_mirror);
-                g.dispatch("target mirror", &self.target_mirror, mirror, threads)?;
+                g.dispatch("target mirror", &self.target_mirror, push, threads)?;
             }
             if self.runs_glossy(mode) {
                 // The sums only feed the fit per surface (frame/glossy_fit.rs).
@@ -260,15 +243,10 @@ impl Renderer {
                     true => ("glossy sums", &self.glossy_sums),
                     false => ("glossy layer", &self.glossy),
                 };
-                g.dispatch(name, pass, bytes_of(&push.glossy), threads)?;
+                g.dispatch(name, pass, push, threads)?;
             }
             if inputs {
-                g.dispatch(
-                    "features",
-                    &self.features,
-                    bytes_of(&push.features),
-                    threads,
-                )?;
+                g.dispatch("features", &self.features, push, threads)?;
             }
             if mode.needs_network() {
                 let (net, nb) = (self.net.as_ref().unwrap(), b.net.as_ref().unwrap());
@@ -276,7 +254,7 @@ impl Renderer {
                     net.record(cmd, nb, &b.input, timer)
                 })?;
             }
-            g.dispatch("output", &self.output, bytes_of(&push.output), threads)
+            g.dispatch("output", &self.output, push, threads)
         })?;
         res
     }
@@ -341,100 +319,46 @@ impl Renderer {
         Ok(())
     }
 
-    /// The push constants of the frame's passes for `cam` (after `cull_views` chose the views).
-    fn pushes(&self, cam: &Camera, lighting: &Lighting, mode: Mode, exposure: f32) -> Pushes {
+    /// The frame's constants for `cam` (after `cull_views` chose the views): every pass's push
+    /// constants but view culling's.
+    fn frame_constants(
+        &self,
+        cam: &Camera,
+        lighting: &Lighting,
+        mode: Mode,
+        exposure: f32,
+    ) -> FrameConstants {
         let s = &self.scene;
-        let c = cam.center();
-        let eye = [c.x, c.y, c.z, 1.0];
-        let (width, height) = (cam.width, cam.height);
-        let (view_w, view_h, nviews) = (s.views.width, s.views.height, s.views.count);
-        let (nlights, norig) = (s.lights.len() as u32, s.originals.len() as u32);
-        let (nlive, live_mask) = (self.live.count(), self.live.mask());
-        let (alpha_dim, nactive) = (lighting.alpha_dim, self.active.len() as u32);
-        let (nsplit, split_layer) = (s.split, s.split_layer);
-        let per_light = lighting.per_light() as u32;
-        Pushes {
-            reproject: reproject::Push {
-                eye,
-                width,
-                height,
-                nactive,
-                view_w,
-                view_h,
+        let net = self.net.as_ref().map(|n| &n.config);
+        FrameConstants {
+            eye: cam.center().extend(1.0).into(),
+            width: cam.width,
+            height: cam.height,
+            view_w: s.views.width,
+            view_h: s.views.height,
+            nviews: s.views.count,
+            nactive: self.active.len() as u32,
+            exclude: self.exclude.unwrap_or(u32::MAX),
+            nlights: s.lights.len() as u32,
+            norig: s.originals.len() as u32,
+            nlive: self.live.count(),
+            live_mask: self.live.mask(),
+            nsplit: s.split,
+            split_layer: s.split_layer,
+            per_light: lighting.per_light() as u32,
+            alpha_dim: lighting.alpha_dim,
+            mode: mode_code(mode),
+            exposure,
+            fill: self.fill_holes as u32,
+            base: match net.map(|c| c.base) {
+                Some(crate::net::NetBase::Ratio) => 1,
+                Some(crate::net::NetBase::Glossy) => 2,
+                _ => 0,
             },
-            irradiance: irradiance::Push {
-                eye,
-                width,
-                height,
-                nactive,
-                view_w,
-                view_h,
-                nviews,
-                nlights,
-                alpha_dim,
-                nlive,
-                live_mask,
-                norig,
-                nsplit,
-                split_layer,
-                per_light,
-            },
-            target_mirror: target_mirror::Push {
-                eye,
-                width,
-                height,
-                view_w,
-                view_h,
-                nviews,
-                nlights,
-                alpha_dim,
-                exclude: self.exclude.unwrap_or(u32::MAX),
-                nlive,
-                live_mask,
-                norig,
-                nsplit,
-                split_layer,
-                per_light,
-            },
-            glossy: glossy::Push {
-                eye,
-                width,
-                height,
-                nactive,
-                view_w,
-                view_h,
-                nlights,
-                norig,
-                alpha_dim,
-                per_light,
-            },
-            features: features::Push { eye, width, height },
-            output: output::Push {
-                width,
-                height,
-                mode: match mode {
-                    Mode::Network => 0,
-                    Mode::Ulr => 1,
-                    Mode::Ratio => 2,
-                    Mode::RatioFilled => 3,
-                    Mode::Glossy => 4,
-                },
-                exposure,
-                cam: cam.to_gpu(NEAR, FAR),
-                nlights,
-                base: match self.net.as_ref().map(|n| n.config.base) {
-                    Some(crate::net::NetBase::Ratio) => 1,
-                    Some(crate::net::NetBase::Glossy) => 2,
-                    _ => 0,
-                },
-                shrink: self.net.as_ref().map_or(0.0, |n| n.config.shrink),
-                gate: self.net.as_ref().map_or(0.0, |n| n.config.gate),
-                gain: self.net.as_ref().is_some_and(|n| n.config.gain) as u32,
-                agree: self.net.as_ref().map_or(0.0, |n| n.config.agree),
-                norig,
-                alpha_dim,
-                fill: self.fill_holes as u32,
-            },
+            shrink: net.map_or(0.0, |c| c.shrink),
+            gate: net.map_or(0.0, |c| c.gate),
+            gain: net.is_some_and(|c| c.gain) as u32,
+            agree: net.map_or(0.0, |c| c.agree),
         }
     }
 
@@ -526,6 +450,7 @@ impl Renderer {
             .set("g_nrm", Bind::StorageImage(b.gbuf.normal.view))
             .set("g_tri", Bind::StorageImage(b.gbuf.tri.view))
             .set("Active", Bind::Buffer(&b.active))
+            .set("NovelCamera", Bind::Buffer(&b.camera))
             .set("CullSeen", Bind::Buffer(&b.cull_seen))
             .set("CullPoints", Bind::Buffer(&b.cull_points))
             .set("tex_img", Bind::Sampled(s.maps.img.view, sm))

@@ -1,4 +1,5 @@
 //! Reprojected composites `I_1..8`, `M_src_1..8` (§4.3.1–4.3.2): `shaders_glsl/frame/reproject.comp`.
+//! Its push constants are the frame's ([`super::FrameConstants`]).
 
 use crate::gpu::shaders;
 use glam::Vec3;
@@ -6,24 +7,6 @@ use glam::Vec3;
 use super::maps::sample_bilinear;
 use super::RefInputs;
 use crate::bake::ViewData;
-
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct Push {
-    pub eye: [f32; 4],
-    pub width: u32,
-    pub height: u32,
-    pub nactive: u32,
-    pub view_w: u32,
-    pub view_h: u32,
-}
-
-/// Push as its shaders' push block declares it (tests/gpu.rs checks).
-pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
-    Push,
-    [shaders::FRAME_REPROJECT],
-    [eye, width, height, nactive, view_w, view_h]
-);
 
 pub const SHADER: crate::gpu::Shader = shaders::FRAME_REPROJECT;
 /// Planes of the output: I_1..8 then M_src_1..8.

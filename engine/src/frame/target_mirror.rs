@@ -1,55 +1,11 @@
 //! Target mirror image `M_tgt` (§4.2.2, eq. 5): `shaders_glsl/frame/target_mirror.comp`.
+//! Its push constants are the frame's ([`super::FrameConstants`]).
 
 use crate::gpu::shaders;
 use glam::Vec3;
 
 use super::RefInputs;
 use crate::scene::Mesh;
-
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct Push {
-    pub eye: [f32; 4],
-    pub width: u32,
-    pub height: u32,
-    pub view_w: u32,
-    pub view_h: u32,
-    pub nviews: u32,
-    pub nlights: u32,
-    pub alpha_dim: f32,
-    pub exclude: u32,
-    pub nlive: u32,
-    pub live_mask: u32,
-    pub norig: u32,
-    /// Per-light control (frame/lighting.rs): the original lights with E_add layers, the first
-    /// of those layers, and whether some original light has a factor of its own.
-    pub nsplit: u32,
-    pub split_layer: u32,
-    pub per_light: u32,
-}
-
-/// Push as its shaders' push block declares it (tests/gpu.rs checks).
-pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout = crate::push_layout!(
-    Push,
-    [shaders::FRAME_TARGET_MIRROR],
-    [
-        eye,
-        width,
-        height,
-        view_w,
-        view_h,
-        nviews,
-        nlights,
-        alpha_dim,
-        exclude,
-        nlive,
-        live_mask,
-        norig,
-        nsplit,
-        split_layer,
-        per_light
-    ]
-);
 
 pub const SHADER: crate::gpu::Shader = shaders::FRAME_TARGET_MIRROR;
 

@@ -1,6 +1,8 @@
 //! Per-frame view culling (§4.3 at the paper's scale): `shaders_glsl/frame/view_cull.comp` finds
 //! which input views see which points of a coarse grid over the novel view; [`choose`] picks
-//! the frame's active views from that on the host.
+//! the frame's active views from that on the host. The pass keeps a push block of its own
+//! ([`Push`]) rather than the frame's constants ([`super::FrameConstants`]): it runs in a
+//! submission of its own before the active views are chosen, and its grid is its alone.
 //!
 //! The composites' cost grows with the views that see each pixel, not with the capture: in a
 //! 300-view capture the 32 views nearest the camera see each pixel about 1.5× as often as the
