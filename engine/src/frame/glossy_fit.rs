@@ -15,7 +15,7 @@
 //! `GLOSSY_REGION_T`; otherwise the patch has none. The result is one vec4 per triangle
 //! (w_1..3, t), which `glossy.comp` reads through the G-buffer's triangle ids.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 
 use glam::Vec3;
 
@@ -185,8 +185,9 @@ fn same_surface(p: &Patch, q: &Patch) -> bool {
 
 /// A pseudo-albedo bin (`albedo_bin`).
 type Bin = [i32; 3];
-/// The patches of a mesh, by cell and albedo bin.
-type Patches = HashMap<Cell, Vec<(Bin, Patch)>>;
+/// The patches of a mesh, by cell and albedo bin; ordered, so that every run pools them in one
+/// order and a glossy frame is the same bytes each time.
+type Patches = BTreeMap<Cell, Vec<(Bin, Patch)>>;
 /// Each triangle's cell and bin (None: no render saw it).
 type TriPatch = (Cell, Option<Bin>);
 /// A cell's fits: per bin, (w_1..3, t) and the patch's pixels.
