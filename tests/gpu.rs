@@ -369,8 +369,8 @@ fn bindings_are_named_and_their_access_reflected() {
 }
 
 /// The pass graph puts a barrier exactly where a pass uses what an earlier one wrote (or
-/// writes what one read), telling resources apart by handle, not by name; results match two
-/// passes recorded with a barrier by hand.
+/// writes what one read), telling resources apart by handle, not by name; the barrier names
+/// each buffer written since the last one, and nothing else.
 #[test]
 fn the_pass_graph_derives_its_barriers() {
     use relit_engine::view::compose::font_words;
@@ -405,11 +405,18 @@ fn the_pass_graph_derives_its_barriers() {
             // Independent of the first: no barrier.
             g.set("Dst", gpu::Bind::Buffer(&d));
             g.dispatch("a to d", &p, push, (8, 8, 1))?;
-            assert_eq!(g.barriers, 0);
+            assert_eq!(g.barriers.commands, 0);
             // Reads b, which the first pass wrote (under the name "Dst"): a barrier.
             g.set("Src", gpu::Bind::Buffer(&b))
                 .set("Dst", gpu::Bind::Buffer(&c));
             g.dispatch("b to c", &p, push, (8, 8, 1))?;
+            // One command with a buffer barrier for b and one for d, the buffers written.
+            let want = gpu::BarrierCount {
+                commands: 1,
+                buffers: 2,
+                ..Default::default()
+            };
+            assert_eq!(g.barriers, want);
             // A pass's own binding that its shader does not declare, and a declared one the
             // graph lacks, are errors naming the shader; neither records anything.
             let misspelt = [("Dest", gpu::Bind::Buffer(&c))];
@@ -425,7 +432,7 @@ fn the_pass_graph_derives_its_barriers() {
                 e.to_string().contains("compose") && e.to_string().contains("\"Dst\""),
                 "{e}"
             );
-            Ok(g.barriers)
+            Ok(g.barriers.commands)
         })
         .unwrap()
         .unwrap();
@@ -433,6 +440,77 @@ fn the_pass_graph_derives_its_barriers() {
     let opaque: Vec<u32> = px.iter().map(|v| v | 0xff00_0000).collect();
     assert_eq!(c.download_vec::<u32>().unwrap(), opaque);
     assert_eq!(d.download_vec::<u32>().unwrap(), opaque);
+    common::assert_no_validation_errors(&gpu);
+}
+
+/// Timer spans come from the graph and add no barrier to a chain whose passes depend on each
+/// other: a span per pass, or one per group, and the same barriers as without a timer. On
+/// lavapipe a span before work that needs no barrier gets one (it reads a timestamp at a
+/// flush).
+#[test]
+fn timer_spans_add_no_barriers_to_a_dependent_chain() {
+    use relit_engine::view::compose::{font_words, push};
+    let gpu = common::gpu();
+    let p = Pipeline::compute(&gpu, shaders::VIEW_COMPOSE).unwrap();
+    let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let font = Buffer::from_slice(&gpu, "font", usage, &font_words()).unwrap();
+    let text = Buffer::from_slice(&gpu, "text", usage, &[0u32; 4]).unwrap();
+    let bufs: Vec<Buffer> = (0..4)
+        .map(|i| Buffer::from_slice(&gpu, &format!("b{i}"), usage, &[i; 64]).unwrap())
+        .collect();
+    let push = push((8, 8), (8, 8), None, false);
+    let push = bytemuck::bytes_of(&push);
+    // b0 → b1 → b2 → b3, then b0 → b1 again after a group (grouped: one span).
+    let chain = |timer: Option<&mut Timer>, grouped: bool| {
+        gpu.submit(|cmd| -> relit_engine::error::Result<gpu::BarrierCount> {
+            let mut g = gpu::Graph::new(&gpu, cmd, timer);
+            let steps = |g: &mut gpu::Graph| -> relit_engine::error::Result<()> {
+                for i in 0..3 {
+                    let (src, dst) = (gpu::Bind::Buffer(&bufs[i]), gpu::Bind::Buffer(&bufs[i + 1]));
+                    let binds = [
+                        ("Src", src),
+                        ("Dst", dst),
+                        ("Font", gpu::Bind::Buffer(&font)),
+                        ("Text", gpu::Bind::Buffer(&text)),
+                    ];
+                    let uses = [gpu::Use::Read(src), gpu::Use::Write(dst)];
+                    g.compute(&format!("step {i}"), &uses, |cmd| {
+                        p.dispatch(cmd, &binds, push, (8, 8, 1))
+                    })?;
+                }
+                Ok(())
+            };
+            match grouped {
+                true => g.group("chain", steps)?,
+                false => steps(&mut g)?,
+            }
+            Ok(g.barriers)
+        })
+        .unwrap()
+        .unwrap()
+    };
+    let plain = chain(None, false);
+    assert_eq!((plain.commands, plain.for_timer), (2, 0));
+    for grouped in [false, true] {
+        let mut timer = Timer::new(&gpu, 8).unwrap();
+        let timed = chain(Some(&mut timer), grouped);
+        let spans = timer.read().unwrap();
+        let labels: Vec<&str> = spans.iter().map(|s| s.0.as_str()).collect();
+        let want: &[&str] = match grouped {
+            true => &["chain"],
+            false => &["step 0", "step 1", "step 2"],
+        };
+        assert_eq!(labels, want);
+        assert!(
+            spans.iter().all(|s| s.1.is_finite() && s.1 >= 0.0),
+            "{spans:?}"
+        );
+        // On lavapipe the first span's timestamp needs a flush before the first pass: one
+        // barrier more; a GPU needs none.
+        let extra = u32::from(gpu.caps.device_type == vk::PhysicalDeviceType::CPU);
+        let want = (2 + extra, extra);
+        assert_eq!((timed.commands, timed.for_timer), want, "grouped {grouped}");
+    }
     common::assert_no_validation_errors(&gpu);
 }
 
@@ -514,14 +592,13 @@ fn timestamps_measure_a_dispatch() {
     .unwrap();
     let mut timer = Timer::new(&gpu, 2).unwrap();
     gpu.submit(|cmd| {
-        let s = timer.begin(cmd, "cast").unwrap();
-        caster.record(cmd, &scene, &rb, &hb, 256, false).unwrap();
-        timer.end(cmd, s);
+        let mut g = gpu::Graph::new(&gpu, cmd, Some(&mut timer));
+        caster.record(&mut g, &scene, &rb, &hb, 256, false).unwrap();
     })
     .unwrap();
     let t = timer.read().unwrap();
     assert_eq!(t.len(), 1);
-    assert_eq!(t[0].0, "cast");
+    assert_eq!(t[0].0, "ray cast");
     // Only sanity: a finite, non-negative span (speed is for `relit bench`).
     assert!(t[0].1.is_finite() && t[0].1 >= 0.0, "{t:?}");
     common::assert_no_validation_errors(&gpu);
@@ -670,9 +747,13 @@ fn compose_scales_the_frame_and_draws_the_hud_as_the_cpu_reference() {
         ((31, 40), Some(&hud), true),
         ((960, 500), Some(&hud), true),
     ] {
-        gpu.submit(|cmd| compose.record(cmd, &buf, (sw, sh), dst, hud, bgr))
-            .unwrap()
-            .unwrap();
+        gpu.submit(|cmd| {
+            let mut g = gpu::Graph::new(&gpu, cmd, None);
+            compose.record(&mut g, &buf, (sw, sh), dst, hud, bgr)?;
+            g.finish()
+        })
+        .unwrap()
+        .unwrap();
         let got = compose
             .output()
             .download_range(0, (dst.0 * dst.1 * 4) as u64)

@@ -75,8 +75,10 @@ fn conv_kernels_match_cpu() {
                 residual: res_ok.then_some(&rt),
             };
             let mut r = Ok(());
-            gpu.submit(|cmd| r = kern.conv(cmd, &layer, &xt, &yt, ep))
-                .unwrap();
+            gpu.submit(|cmd| {
+                r = kern.conv(&mut gpu::Graph::new(&gpu, cmd, None), &layer, &xt, &yt, ep)
+            })
+            .unwrap();
             r.unwrap();
             let got = yt.download_chw().unwrap();
             // The reference sees what the device sees: inputs rounded to the storage type.
@@ -134,7 +136,7 @@ fn upsample_add_matches_cpu() {
         st.upload_chw(&src).unwrap();
         dt.upload_chw(&dst).unwrap();
         let mut r = Ok(());
-        gpu.submit(|cmd| r = kern.upsample_add(cmd, &st, &dt))
+        gpu.submit(|cmd| r = kern.upsample_add(&mut gpu::Graph::new(&gpu, cmd, None), &st, &dt))
             .unwrap();
         r.unwrap();
         let want = upsample_add_reference(&src, (c, sh, sw), &dst, (dh, dw));

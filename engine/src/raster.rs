@@ -7,7 +7,9 @@ use crate::gpu::shaders;
 use std::sync::Arc;
 
 use crate::error::Result;
-use crate::gpu::{bytes_of, image_barrier, vk, Gpu, GraphicsDesc, Image, Pipeline, RayScene};
+use crate::gpu::{
+    bytes_of, image_barrier, image_barriers, vk, Gpu, GraphicsDesc, Image, Pipeline, RayScene,
+};
 use crate::scene::Camera;
 
 pub const POS_DEPTH_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
@@ -117,6 +119,10 @@ impl GbufferPass {
         Ok(GbufferPass { pipeline })
     }
 
+    /// The barrier commands `record` puts itself: the attachments' and the depth's layouts
+    /// before, the attachments' after.
+    pub const LAYOUT_BARRIERS: u32 = 3;
+
     /// Records the rasterization of `mesh` seen by `cam` into `out` (same size as the camera).
     pub fn record(
         &self,
@@ -130,22 +136,18 @@ impl GbufferPass {
         let gpu = &self.pipeline.gpu;
         let d = &gpu.device;
         let color = vk::ImageAspectFlags::COLOR;
-        for img in [&out.pos_depth, &out.normal, &out.tri] {
-            image_barrier(
-                gpu,
-                cmd,
-                img.raw,
-                color,
-                vk::ImageLayout::UNDEFINED,
-                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-            );
-        }
+        let targets = [&out.pos_depth, &out.normal, &out.tri].map(|i| (i.raw, color));
+        // The colour targets and the depth each change layout in one barrier command: the
+        // G-buffer pass's own two (after it, the graph's).
+        let attach = vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL;
+        let undefined = vk::ImageLayout::UNDEFINED;
+        image_barriers(gpu, cmd, &targets, undefined, attach);
         image_barrier(
             gpu,
             cmd,
             out.depth.raw,
             vk::ImageAspectFlags::DEPTH,
-            vk::ImageLayout::UNDEFINED,
+            undefined,
             vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL,
         );
         let clear = |c: vk::ClearValue, img: &Image| {
@@ -213,16 +215,7 @@ impl GbufferPass {
             d.cmd_draw(cmd, mesh.triangle_count * 3, 1, 0, 0);
             d.cmd_end_rendering(cmd);
         }
-        for img in [&out.pos_depth, &out.normal, &out.tri] {
-            image_barrier(
-                gpu,
-                cmd,
-                img.raw,
-                color,
-                vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
-                vk::ImageLayout::GENERAL,
-            );
-        }
+        image_barriers(gpu, cmd, &targets, attach, vk::ImageLayout::GENERAL);
         Ok(())
     }
 

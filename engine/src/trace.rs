@@ -6,7 +6,7 @@ use crate::gpu::shaders;
 use std::sync::Arc;
 
 use crate::error::Result;
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Pipeline, RayScene};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Graph, Pipeline, RayScene};
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
@@ -51,7 +51,7 @@ impl RayCaster {
     /// Records the cast of `count` rays from `rays` into `hits`.
     pub fn record(
         &self,
-        cmd: vk::CommandBuffer,
+        g: &mut Graph,
         scene: &RayScene,
         rays: &Buffer,
         hits: &Buffer,
@@ -62,8 +62,9 @@ impl RayCaster {
             count,
             occlusion: occlusion as u32,
         };
-        self.pipeline.dispatch(
-            cmd,
+        g.dispatch_with(
+            "ray cast",
+            &self.pipeline,
             &[
                 ("tlas", Bind::Accel(scene.tlas.raw)),
                 ("Rays", Bind::Buffer(rays)),
@@ -86,7 +87,10 @@ impl RayCaster {
             crate::gpu::MemoryLocation::GpuOnly,
         )?;
         let mut res = Ok(());
-        gpu.submit(|cmd| res = self.record(cmd, scene, &rb, &hb, rays.len() as u32, occlusion))?;
+        gpu.submit(|cmd| {
+            let g = &mut Graph::new(gpu, cmd, None);
+            res = self.record(g, scene, &rb, &hb, rays.len() as u32, occlusion)
+        })?;
         res?;
         let mut hits: Vec<Hit> = hb.download_vec()?;
         hits.truncate(rays.len());

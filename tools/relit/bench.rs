@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::Subcommand;
 use glam::Vec3;
-use relit_engine::gpu::{vk, Buffer, GpuOptions, MemoryLocation, RayScene, Timer};
+use relit_engine::gpu::{vk, Buffer, GpuOptions, Graph, MemoryLocation, RayScene, Timer};
 use relit_engine::scene::{synth, Mesh};
 use relit_engine::trace::{Hit, Ray, RayCaster};
 
@@ -304,25 +304,16 @@ fn rays_bench(
         let rb = Buffer::from_slice(&gpu, "rays", vk::BufferUsageFlags::STORAGE_BUFFER, &rays)?;
         // The first dispatch compiles the shader on lavapipe: warm up untimed.
         let mut err = Ok(());
-        gpu.submit(|cmd| err = caster.record(cmd, &scene, &rb, &hits, n.min(1024), occlusion))?;
+        gpu.submit(|cmd| {
+            let g = &mut Graph::new(&gpu, cmd, None);
+            err = caster.record(g, &scene, &rb, &hits, n.min(1024), occlusion)
+        })?;
         err?;
         let mut times = Vec::new();
-        let mut timer = Timer::new(&gpu, 1)?;
         for _ in 0..repeats.max(1) {
-            timer.reset();
-            let mut err = Ok(());
-            gpu.submit(|cmd| {
-                err = timer
-                    .begin(cmd, mode)
-                    .and_then(|s| {
-                        caster
-                            .record(cmd, &scene, &rb, &hits, n, occlusion)
-                            .map(|_| s)
-                    })
-                    .map(|s| timer.end(cmd, s));
-            })?;
-            err?;
-            times.push(timer.read()?[0].1);
+            times.push(timed(&gpu, |g| {
+                caster.record(g, &scene, &rb, &hits, n, occlusion)
+            })?);
         }
         let ms = median(times);
         let hit_frac = {
@@ -357,19 +348,16 @@ fn rays_bench(
     Ok(())
 }
 
-/// Times `record` with GPU timestamps; returns milliseconds.
+/// Times the passes `record` puts in a graph with GPU timestamps; returns milliseconds.
 fn timed(
     gpu: &std::sync::Arc<relit_engine::gpu::Gpu>,
-    label: &str,
-    record: impl FnOnce(vk::CommandBuffer) -> relit_engine::Result<()>,
+    record: impl FnOnce(&mut Graph) -> relit_engine::Result<()>,
 ) -> Result<f64> {
     let mut timer = Timer::new(gpu, 1)?;
     let mut err = Ok(());
     gpu.submit(|cmd| {
-        err = timer
-            .begin(cmd, label)
-            .and_then(|s| record(cmd).map(|_| s))
-            .map(|s| timer.end(cmd, s));
+        let mut g = Graph::new(gpu, cmd, Some(&mut timer));
+        err = record(&mut g);
     })?;
     err?;
     Ok(timer.read()?[0].1)
@@ -436,11 +424,9 @@ fn raw_rate(gpu: &std::sync::Arc<relit_engine::gpu::Gpu>, mesh: &Mesh) -> Result
         vk::BufferUsageFlags::STORAGE_BUFFER,
         MemoryLocation::GpuOnly,
     )?;
-    timed(gpu, "warm", |cmd| {
-        caster.record(cmd, &rs, &rb, &hits, 1024, false)
-    })?;
-    let ms = timed(gpu, "raw", |cmd| {
-        caster.record(cmd, &rs, &rb, &hits, rays.len() as u32, false)
+    timed(gpu, |g| caster.record(g, &rs, &rb, &hits, 1024, false))?;
+    let ms = timed(gpu, |g| {
+        caster.record(g, &rs, &rb, &hits, rays.len() as u32, false)
     })?;
     println!(
         "raw closest-hit rate on this mesh: {:.3} M rays/s",
@@ -645,7 +631,7 @@ fn net_bench(
     );
     // Warm-up: lavapipe compiles each shader at its first dispatch.
     let t0 = Instant::now();
-    gpu.submit(|cmd| net.record(cmd, &bufs, &x, None))??;
+    gpu.submit(|cmd| net.record(&mut Graph::new(&gpu, cmd, None), &bufs, &x))??;
     println!(
         "first run (includes shader compilation): {:.2} s",
         t0.elapsed().as_secs_f64()
@@ -654,7 +640,7 @@ fn net_bench(
     let mut stages: Vec<(String, Vec<f64>)> = Vec::new();
     for _ in 0..repeats.max(1) {
         let mut timer = Timer::new(&gpu, 64)?;
-        gpu.submit(|cmd| net.record(cmd, &bufs, &x, Some(&mut timer)))??;
+        gpu.submit(|cmd| net.record(&mut Graph::new(&gpu, cmd, Some(&mut timer)), &bufs, &x))??;
         totals.push(collect_spans(&timer, &mut stages)?);
     }
     let total = median(totals);
@@ -898,7 +884,18 @@ fn frame_bench(
             fit.as_secs_f64()
         );
     }
+    r.render(&cams[1 % cams.len()], &light, mode, 1.0, None)?;
+    let plain = r.last_barriers();
     let (stages, totals, walls) = timed_frames(&gpu, &mut r, &cams, &light, (mode, frames))?;
+    let spanned = r.last_barriers();
+    println!(
+        "barriers per frame: {plain}; with the timer's spans: {}",
+        spanned.commands
+    );
+    println!(
+        "  (and the G-buffer pass's own {} layout changes, inside it)",
+        relit_engine::raster::GbufferPass::LAYOUT_BARRIERS
+    );
     println!("{:<22} {:>10} {:>10}", "pass", "median ms", "p95 ms");
     for (label, v) in &stages {
         println!(
@@ -933,6 +930,9 @@ fn frame_bench(
             "mode": format!("{mode:?}"), "storage": format!("{:?}", r.storage),
             "network_width": r.net.as_ref().map(|n| n.config.width),
             "frames": frames,
+            "barriers_per_frame": { "commands": plain.commands, "buffer": plain.buffers,
+                "image": plain.images, "memory": plain.memory,
+                "commands_with_timer": spanned.commands, "gbuffer_layout": relit_engine::raster::GbufferPass::LAYOUT_BARRIERS },
             "passes_ms_median": stages.iter().map(|(l, v)| (l.clone(), median(v.clone()))).collect::<std::collections::BTreeMap<_, _>>(),
             "gpu_ms": { "median": gm, "p95": gp }, "wall_ms": { "median": wm, "p95": wp },
             "fps": { "median": 1e3 / gm, "p95": 1e3 / gp },

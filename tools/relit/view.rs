@@ -17,7 +17,7 @@ use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
 use relit_engine::frame::lighting::AS_CAPTURED;
 use relit_engine::frame::live::PathMoves;
 use relit_engine::frame::{added_lights, Lighting, Mode, Renderer};
-use relit_engine::gpu::{present, Gpu, GpuOptions, PresentMode, Presenter, Timer};
+use relit_engine::gpu::{present, Gpu, GpuOptions, Graph, PresentMode, Presenter, Timer};
 use relit_engine::scene::path::CameraPath;
 use relit_engine::scene::{Camera, LightShape, Scene};
 use relit_engine::view::compose::{Compose, HudText};
@@ -575,8 +575,12 @@ impl App {
         presenter.extent(size)?;
         let bgr = presenter.bgr();
         let compose = &mut self.compose;
+        let gpu = &self.gpu;
         let shown = presenter.present(size, |cmd, ext| {
-            compose.record(cmd, &b.ldr, (b.width, b.height), ext, hud, bgr)?;
+            let mut g = Graph::new(gpu, cmd, None);
+            compose.record(&mut g, &b.ldr, (b.width, b.height), ext, hud, bgr)?;
+            // The copy to the swapchain image follows, outside the graph.
+            g.finish()?;
             Ok(compose.output().raw)
         })?;
         if presenter.created != created {

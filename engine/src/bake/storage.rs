@@ -9,7 +9,9 @@ use std::sync::Arc;
 use half::f16;
 
 use crate::error::{Error, Result};
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Image, MemoryLocation, Pipeline, Sampler};
+use crate::gpu::{
+    bytes_of, vk, Bind, Buffer, Gpu, Graph, Image, MemoryLocation, Pipeline, Sampler,
+};
 
 /// Encodes an RGB float image (rows top to bottom) as BC6H unsigned blocks. Sizes need not be
 /// multiples of 4: edges are replicated into the padding. Negative values clamp to 0.
@@ -203,10 +205,11 @@ impl Fetch {
         )?;
         let mut res = Ok(());
         gpu.submit(|cmd| {
-            res = self.pipeline.dispatch(
-                cmd,
+            res = Graph::new(gpu, cmd, None).dispatch_with(
+                "fetch",
+                &self.pipeline,
                 &[
-                    ("tex", Bind::Sampled(image.view, self.sampler.raw)),
+                    ("tex", Bind::Sampled(image, self.sampler.raw)),
                     ("Out", Bind::Buffer(&full)),
                 ],
                 bytes_of(&push),

@@ -11,7 +11,7 @@ use super::{
 };
 use crate::bake::GpuLight;
 use crate::error::{Error, Result};
-use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Graph, Pipeline, Timer};
+use crate::gpu::{bytes_of, vk, BarrierCount, Bind, Buffer, Gpu, Graph, Pipeline, Timer};
 use crate::net::{Network, Storage, INPUT_CHANNELS};
 use crate::raster::GbufferPass;
 use crate::scene::{Camera, Light};
@@ -56,6 +56,8 @@ pub struct Renderer {
     pub(super) glossy_fit: Option<(Option<u32>, Buffer)>,
     pub(super) fitting: bool,
     zero_fit: Buffer,
+    /// The barriers the last frame's graphs recorded (`relit bench frame` prints them).
+    barriers: std::cell::Cell<BarrierCount>,
 }
 
 /// The novel view's G-buffer, as the frame's passes name it.
@@ -118,6 +120,7 @@ impl Renderer {
                 vk::BufferUsageFlags::STORAGE_BUFFER,
                 &[[0f32; 4]],
             )?,
+            barriers: Default::default(),
         })
     }
 
@@ -209,6 +212,7 @@ impl Renderer {
             self.ensure_glossy_fit()?;
         }
         self.buffers(cam.width, cam.height)?;
+        self.barriers.set(BarrierCount::default());
         let culled = self.cull_views(cam, timer.as_deref_mut())?;
         let b = &self.bufs[0];
         b.active.upload(bytemuck::cast_slice(&self.active))?;
@@ -224,7 +228,7 @@ impl Renderer {
         // The passes that only feed the network (see `display_only`).
         let inputs = mode.needs_network() || !self.display_only;
         let gpu = self.gpu.clone();
-        let res = gpu.submit(|cmd| -> Result<()> {
+        let res = gpu.submit(|cmd| -> Result<BarrierCount> {
             let mut g = Graph::new(&gpu, cmd, timer);
             self.resources(&mut g, b);
             if culled {
@@ -250,13 +254,24 @@ impl Renderer {
             }
             if mode.needs_network() {
                 let (net, nb) = (self.net.as_ref().unwrap(), b.net.as_ref().unwrap());
-                g.external(None, &["NetIn"], &["NetOut"], |cmd, timer| {
-                    net.record(cmd, nb, &b.input, timer)
-                })?;
+                net.record(&mut g, nb, &b.input)?;
             }
-            g.dispatch("output", &self.output, push, threads)
+            g.dispatch("output", &self.output, push, threads)?;
+            Ok(g.barriers)
         })?;
-        res
+        self.add_barriers(&res?);
+        Ok(())
+    }
+
+    /// The barriers of the last frame: every graph it recorded, the view culling's included.
+    pub fn last_barriers(&self) -> BarrierCount {
+        self.barriers.get()
+    }
+
+    fn add_barriers(&self, c: &BarrierCount) {
+        let mut all = self.barriers.get();
+        all.add(c);
+        self.barriers.set(all);
     }
 
     /// Whether a frame in `mode` runs the view-dependent layer: glossy mode, and the network
@@ -407,13 +422,15 @@ impl Renderer {
             words: nw,
         };
         let gpu = self.gpu.clone();
-        gpu.submit(|cmd| -> Result<()> {
+        let res = gpu.submit(|cmd| -> Result<BarrierCount> {
             let mut g = Graph::new(&gpu, cmd, timer);
             self.resources(&mut g, b);
             self.record_gbuffer(&mut g, b, cam)?;
             let threads = (nw * n as u32, 1, 1);
-            g.dispatch("view culling", &self.view_cull, bytes_of(&push), threads)
-        })??;
+            g.dispatch("view culling", &self.view_cull, bytes_of(&push), threads)?;
+            Ok(g.barriers)
+        })?;
+        self.add_barriers(&res?);
         let mut seen: Vec<u32> = bytemuck::pod_collect_to_vec(&b.cull_seen.download()?);
         let mut points: Vec<[f32; 4]> = b.cull_points.download_vec()?;
         seen.truncate(nw as usize * n);
@@ -428,7 +445,7 @@ impl Renderer {
         cam: &Camera,
     ) -> Result<()> {
         let mesh = &self.scene.mesh;
-        g.external(Some("g-buffer"), &[], &GBUFFER, |cmd, _| {
+        g.external("g-buffer", &[], &GBUFFER, |cmd| {
             self.gbuffer.record(cmd, mesh, cam, NEAR, FAR, &b.gbuf)
         })
     }
@@ -446,17 +463,17 @@ impl Renderer {
         let (live_caches, live_corners, live_lights) = self.live.buffers();
         let (name, views) = s.views.bind();
         g.set(name, views)
-            .set("g_pos", Bind::StorageImage(b.gbuf.pos_depth.view))
-            .set("g_nrm", Bind::StorageImage(b.gbuf.normal.view))
-            .set("g_tri", Bind::StorageImage(b.gbuf.tri.view))
+            .set("g_pos", Bind::StorageImage(&b.gbuf.pos_depth))
+            .set("g_nrm", Bind::StorageImage(&b.gbuf.normal))
+            .set("g_tri", Bind::StorageImage(&b.gbuf.tri))
             .set("Active", Bind::Buffer(&b.active))
             .set("NovelCamera", Bind::Buffer(&b.camera))
             .set("CullSeen", Bind::Buffer(&b.cull_seen))
             .set("CullPoints", Bind::Buffer(&b.cull_points))
-            .set("tex_img", Bind::Sampled(s.maps.img.view, sm))
-            .set("tex_msrc", Bind::Sampled(s.maps.msrc.view, sm))
-            .set("tex_esrc", Bind::Sampled(s.maps.esrc.view, sm))
-            .set("tex_eadd", Bind::Sampled(s.maps.eadd.view, sm))
+            .set("tex_img", Bind::Sampled(&s.maps.img, sm))
+            .set("tex_msrc", Bind::Sampled(&s.maps.msrc, sm))
+            .set("tex_esrc", Bind::Sampled(&s.maps.esrc, sm))
+            .set("tex_eadd", Bind::Sampled(&s.maps.eadd, sm))
             .set("Intensity", Bind::Buffer(&b.intensity))
             .set("Keep", Bind::Buffer(&b.keep))
             .set("tlas", Bind::Accel(s.mesh.tlas.raw))

@@ -6,7 +6,7 @@
 use crate::gpu::shaders;
 use std::sync::Arc;
 
-use super::{bytes_of, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline, Timer};
+use super::{bytes_of, vk, Bind, Buffer, Gpu, Graph, MemoryLocation, Pipeline, Timer};
 use crate::error::{Error, Result};
 
 /// Loads per invocation (`LOADS` in gather.glsl).
@@ -114,18 +114,18 @@ impl GatherProbe {
             Access::StorageBuffer => &self.ssbo,
             Access::DeviceAddress => &self.bda,
         };
-        let binds = [
+        let binds: Vec<(&str, Bind)> = [
             ("Table", Bind::Buffer(&self.table)),
             ("Out", Bind::Buffer(&self.out)),
-        ];
+        ]
+        .into_iter()
+        .filter(|(n, _)| pipe.has_binding(n))
+        .collect();
         let mut timer = Timer::new(&self.gpu, 1)?;
         let mut err = Ok(());
         self.gpu.submit(|cmd| {
-            err = timer.begin(cmd, "gather").and_then(|s| {
-                pipe.dispatch_subset(cmd, &binds, bytes_of(&push), (self.count, 1, 1))?;
-                timer.end(cmd, s);
-                Ok(())
-            });
+            let mut g = Graph::new(&self.gpu, cmd, Some(&mut timer));
+            err = g.dispatch_with("gather", pipe, &binds, bytes_of(&push), (self.count, 1, 1));
         })?;
         err?;
         let ms = timer.read()?[0].1;

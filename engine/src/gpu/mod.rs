@@ -2,6 +2,7 @@
 //! reflected SPIR-V, acceleration structures and timestamps.
 
 mod accel;
+mod barrier;
 mod device;
 pub mod gather;
 mod graph;
@@ -11,12 +12,13 @@ pub mod present;
 mod timer;
 
 pub use accel::{AccelStruct, RayScene};
+pub use barrier::BarrierCount;
 pub use device::{
     list_devices, load_entry, validation_layer_available, Caps, CoopMatrixShape, DeviceChoice, Gpu,
     GpuOptions,
 };
-pub use graph::Graph;
-pub use memory::{full_barrier, image_barrier, texel_size, Buffer, Image};
+pub use graph::{Graph, Use};
+pub use memory::{full_barrier, image_barrier, image_barriers, texel_size, Buffer, Image};
 pub use pipeline::{
     layout_source, reflect, shaders, spirv, Access, Bind, GraphicsDesc, Pipeline, PushLayout,
     Reflected, Sampler, Shader,

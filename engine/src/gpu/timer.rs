@@ -7,12 +7,15 @@ use ash::vk;
 use super::Gpu;
 use crate::error::{Error, Result, VkContext};
 
-/// Up to `capacity` labelled spans per recording; `read` turns them into milliseconds.
+/// Up to `capacity` labelled spans per recording; `read` turns them into milliseconds. Only
+/// the pass graph writes timestamps ([`super::Graph`]): a span runs from one timestamp to the
+/// next, and the graph puts them between passes, where its barriers already are.
 pub struct Timer {
     gpu: Arc<Gpu>,
     pool: vk::QueryPool,
     capacity: u32,
-    labels: Vec<String>,
+    stamps: u32,
+    spans: Vec<(String, u32, u32)>,
 }
 
 impl Timer {
@@ -36,13 +39,15 @@ impl Timer {
             gpu: gpu.clone(),
             pool,
             capacity,
-            labels: Vec::new(),
+            stamps: 0,
+            spans: Vec::new(),
         })
     }
 
-    /// Clears the labels and the queries (host reset; call outside any recording).
+    /// Clears the spans and the queries (host reset; call outside any recording).
     pub fn reset(&mut self) {
-        self.labels.clear();
+        self.spans.clear();
+        self.stamps = 0;
         unsafe {
             self.gpu
                 .device
@@ -50,53 +55,39 @@ impl Timer {
         };
     }
 
-    /// Records the start of span `label`; returns its index for `end`.
-    pub fn begin(&mut self, cmd: vk::CommandBuffer, label: &str) -> Result<u32> {
-        let i = self.labels.len() as u32;
-        if i >= self.capacity {
+    /// Records a timestamp once all earlier commands are done; returns its query.
+    pub(crate) fn stamp(&mut self, cmd: vk::CommandBuffer) -> Result<u32> {
+        if self.stamps >= self.capacity * 2 || self.spans.len() as u32 >= self.capacity {
             return Err(Error::Other(format!(
                 "timer full ({} spans)",
                 self.capacity
             )));
         }
-        self.labels.push(label.to_string());
-        // Span boundaries are full barriers on both sides of the timestamp, so a span covers
-        // exactly the commands inside it. lavapipe needs both: it bins a timestamp and takes
-        // the time only when that bin is flushed, which a barrier does; without the second
-        // barrier the time would be taken after the next (synchronous) compute dispatch.
-        super::full_barrier(&self.gpu, cmd);
+        let q = self.stamps;
+        self.stamps += 1;
         unsafe {
             self.gpu.device.cmd_write_timestamp2(
                 cmd,
                 vk::PipelineStageFlags2::ALL_COMMANDS,
                 self.pool,
-                2 * i,
+                q,
             )
         };
-        super::full_barrier(&self.gpu, cmd);
-        Ok(i)
+        Ok(q)
     }
 
-    pub fn end(&self, cmd: vk::CommandBuffer, span: u32) {
-        super::full_barrier(&self.gpu, cmd);
-        unsafe {
-            self.gpu.device.cmd_write_timestamp2(
-                cmd,
-                vk::PipelineStageFlags2::ALL_COMMANDS,
-                self.pool,
-                2 * span + 1,
-            )
-        };
-        super::full_barrier(&self.gpu, cmd);
+    /// Names the span between the timestamps `from` and `to`.
+    pub(crate) fn span(&mut self, label: String, from: u32, to: u32) {
+        self.spans.push((label, from, to));
     }
 
     /// (label, milliseconds) for every span, once the recording has completed.
     pub fn read(&self) -> Result<Vec<(String, f64)>> {
-        let n = self.labels.len();
-        if n == 0 {
+        let n = self.stamps as usize;
+        if self.spans.is_empty() {
             return Ok(Vec::new());
         }
-        let mut data = vec![0u64; 2 * n];
+        let mut data = vec![0u64; n];
         unsafe {
             self.gpu.device.get_query_pool_results(
                 self.pool,
@@ -113,12 +104,10 @@ impl Timer {
             (1u64 << bits) - 1
         };
         let period = self.gpu.caps.timestamp_period_ns as f64;
-        Ok(self
-            .labels
-            .iter()
-            .enumerate()
-            .map(|(i, l)| {
-                let ticks = (data[2 * i + 1] & mask).wrapping_sub(data[2 * i] & mask) & mask;
+        Ok((self.spans.iter())
+            .map(|(l, a, b)| {
+                let (a, b) = (data[*a as usize] & mask, data[*b as usize] & mask);
+                let ticks = b.wrapping_sub(a) & mask;
                 (l.clone(), ticks as f64 * period * 1e-6)
             })
             .collect())

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use super::conv::{Conv, Epilogue, NetKernels, Storage, Tensor};
 use crate::error::{Error, Result};
-use crate::gpu::{vk, Gpu, Timer};
+use crate::gpu::{Gpu, Graph};
 
 /// The network's shape (the paper: 66 in, width 66, 4 / 5×4 / 2 blocks, 6 out).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -346,7 +346,7 @@ impl Network {
     /// temporary; returns the tensor that holds the result.
     fn blocks<'a>(
         &self,
-        cmd: vk::CommandBuffer,
+        g: &mut Graph,
         blocks: &[Block],
         input: &'a Tensor,
         mut a: &'a Tensor,
@@ -365,7 +365,7 @@ impl Network {
                 relu: true,
                 ..Default::default()
             };
-            k.conv(cmd, &blk.conv1, x, t, ep1)?;
+            k.conv(g, &blk.conv1, x, t, ep1)?;
             let ep2 = Epilogue {
                 in_bias: blk.bias2a,
                 out_bias: blk.bias2b,
@@ -373,63 +373,67 @@ impl Network {
                 relu: true,
                 residual: Some(x),
             };
-            k.conv(cmd, &blk.conv2, t, a, ep2)?;
+            k.conv(g, &blk.conv2, t, a, ep2)?;
             x = a;
         }
         Ok(x)
     }
 
-    /// Records the network on `input` (in_channels × h × w) into `bufs.out`. With a timer, one
-    /// span per stage: input conv, trunk, pyramid (downsampling), level k, upsample, tail, output.
-    pub fn record(
-        &self,
-        cmd: vk::CommandBuffer,
-        bufs: &NetBuffers,
-        input: &Tensor,
-        mut timer: Option<&mut Timer>,
-    ) -> Result<()> {
+    /// Records the network on `input` (in_channels × h × w) into `bufs.out`, each layer a pass
+    /// of `g`; with a timer, one span per stage: input conv, trunk, pyramid (downsampling),
+    /// level k, upsample, tail, output.
+    pub fn record(&self, g: &mut Graph, bufs: &NetBuffers, input: &Tensor) -> Result<()> {
         if (input.c, input.h, input.w) != (self.config.in_channels, bufs.h, bufs.w) {
             return Err(Error::Other(format!(
                 "network input {}x{}x{}, expected {}x{}x{}",
                 input.c, input.h, input.w, self.config.in_channels, bufs.h, bufs.w
             )));
         }
-        macro_rules! timed {
-            ($label:expr, $body:expr) => {{
-                let s = match timer.as_deref_mut() {
-                    Some(t) => Some(t.begin(cmd, $label)?),
-                    None => None,
-                };
-                let r = $body;
-                if let (Some(s), Some(t)) = (s, timer.as_deref()) {
-                    t.end(cmd, s);
-                }
-                r
-            }};
-        }
+        let k = &self.kernels;
         let l0 = &bufs.levels[0];
         let x = match &self.in_conv {
-            Some(c) => timed!("net: input conv", {
-                self.kernels
-                    .conv(cmd, c, input, &l0[0], Epilogue::default())?;
-                &l0[0]
-            }),
+            Some(c) => g.group("net: input conv", |g| {
+                k.conv(g, c, input, &l0[0], Epilogue::default())?;
+                Ok(&l0[0])
+            })?,
             None => input,
         };
-        let trunk = timed!(
-            "net: trunk",
-            self.blocks(cmd, &self.trunk, x, &l0[1], &l0[0], &l0[2])?
-        );
+        let trunk = g.group("net: trunk", |g| {
+            self.blocks(g, &self.trunk, x, &l0[1], &l0[0], &l0[2])
+        })?;
+        let sum = self.pyramid(g, bufs, trunk)?;
+        let other = if std::ptr::eq(sum, &l0[0]) {
+            &l0[1]
+        } else {
+            &l0[0]
+        };
+        let tail = g.group("net: tail", |g| {
+            self.blocks(g, &self.tail, sum, other, sum, &l0[2])
+        })?;
+        g.group("net: output conv", |g| {
+            k.conv(g, &self.out_conv, tail, &bufs.out, Epilogue::default())
+        })
+    }
+
+    /// The pyramid from `trunk`: downsampling, each level's ResNet, and the coarser levels
+    /// upsampled into the finest; returns the tensor holding the sum.
+    fn pyramid<'a>(
+        &self,
+        g: &mut Graph,
+        bufs: &'a NetBuffers,
+        trunk: &'a Tensor,
+    ) -> Result<&'a Tensor> {
         // The raw pyramid first: each level's ResNet may then reuse its input buffer.
         let mut pyramid = vec![trunk];
-        timed!("net: pyramid", {
+        g.group("net: pyramid", |g| {
             for (k, d) in self.down.iter().enumerate() {
                 let out = &bufs.levels[k + 1][0];
                 self.kernels
-                    .conv(cmd, d, pyramid[k], out, Epilogue::default())?;
+                    .conv(g, d, pyramid[k], out, Epilogue::default())?;
                 pyramid.push(out);
             }
-        });
+            Ok(())
+        })?;
         let mut results = Vec::new();
         for (k, (blocks, lv)) in self.levels.iter().zip(&bufs.levels).enumerate() {
             let input = pyramid[k];
@@ -438,30 +442,18 @@ impl Network {
             } else {
                 (&lv[1], &lv[0])
             };
-            results.push(timed!(&format!("net: level {k}"), {
-                self.blocks(cmd, blocks, input, a, b, &lv[2])?
-            }));
+            results.push(g.group(&format!("net: level {k}"), |g| {
+                self.blocks(g, blocks, input, a, b, &lv[2])
+            })?);
         }
         let sum = results[0];
-        timed!("net: upsample", {
+        g.group("net: upsample", |g| {
             for r in &results[1..] {
-                self.kernels.upsample_add(cmd, r, sum)?;
+                self.kernels.upsample_add(g, r, sum)?;
             }
-        });
-        let other = if std::ptr::eq(sum, &l0[0]) {
-            &l0[1]
-        } else {
-            &l0[0]
-        };
-        let tail = timed!(
-            "net: tail",
-            self.blocks(cmd, &self.tail, sum, other, sum, &l0[2])?
-        );
-        timed!("net: output conv", {
-            self.kernels
-                .conv(cmd, &self.out_conv, tail, &bufs.out, Epilogue::default())?
-        });
-        Ok(())
+            Ok(())
+        })?;
+        Ok(sum)
     }
 
     /// Runs the network on planar CHW input and returns planar CHW output (tests, tools).
@@ -478,7 +470,7 @@ impl Network {
         x.upload_chw(input)?;
         let bufs = self.buffers(h, w)?;
         let mut res = Ok(());
-        gpu.submit(|cmd| res = self.record(cmd, &bufs, &x, None))?;
+        gpu.submit(|cmd| res = self.record(&mut Graph::new(gpu, cmd, None), &bufs, &x))?;
         res?;
         bufs.out.download_chw()
     }

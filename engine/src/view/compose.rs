@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use crate::error::Result;
-use crate::gpu::{bytes_of, shaders, vk, Bind, Buffer, Gpu, MemoryLocation, Pipeline};
+use crate::gpu::{bytes_of, shaders, vk, Bind, Buffer, Gpu, Graph, MemoryLocation, Pipeline};
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
@@ -210,7 +210,7 @@ impl Compose {
     /// Records the pass: `src` (RGBA8, `src_size`) into the window picture of `dst_size`.
     pub fn record(
         &mut self,
-        cmd: vk::CommandBuffer,
+        g: &mut Graph,
         src: &Buffer,
         src_size: (u32, u32),
         dst_size: (u32, u32),
@@ -244,10 +244,8 @@ impl Compose {
             ("Font", Bind::Buffer(&self.font)),
             ("Text", Bind::Buffer(&self.text)),
         ];
-        self.pipe
-            .dispatch(cmd, &binds, bytes_of(&push), (dst_size.0, dst_size.1, 1))?;
-        crate::gpu::full_barrier(&self.gpu, cmd);
-        Ok(())
+        let threads = (dst_size.0, dst_size.1, 1);
+        g.dispatch_with("compose", &self.pipe, &binds, bytes_of(&push), threads)
     }
 
     /// The window picture's size.

@@ -107,8 +107,8 @@ impl Gpu {
     }
 }
 
-/// A full memory barrier between two commands. The engine's passes are few and large, so a
-/// coarse barrier costs nothing measurable and keeps every hazard covered.
+/// A full memory barrier between two commands: only for work outside any pass graph (the
+/// acceleration structures' build, between BLAS and TLAS).
 pub fn full_barrier(gpu: &Gpu, cmd: vk::CommandBuffer) {
     let mb = [vk::MemoryBarrier2::default()
         .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
@@ -130,20 +130,36 @@ pub fn image_barrier(
     old: vk::ImageLayout,
     new: vk::ImageLayout,
 ) {
-    let ib = [vk::ImageMemoryBarrier2::default()
-        .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
-        .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
-        .dst_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
-        .dst_access_mask(vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE)
-        .old_layout(old)
-        .new_layout(new)
-        .image(image)
-        .subresource_range(
-            vk::ImageSubresourceRange::default()
-                .aspect_mask(aspect)
-                .level_count(vk::REMAINING_MIP_LEVELS)
-                .layer_count(vk::REMAINING_ARRAY_LAYERS),
-        )];
+    image_barriers(gpu, cmd, &[(image, aspect)], old, new)
+}
+
+/// Moves every mip and layer of each of `images` (with its aspect) from `old` to `new` in one
+/// barrier command, waiting on all prior work.
+pub fn image_barriers(
+    gpu: &Gpu,
+    cmd: vk::CommandBuffer,
+    images: &[(vk::Image, vk::ImageAspectFlags)],
+    old: vk::ImageLayout,
+    new: vk::ImageLayout,
+) {
+    let ib: Vec<vk::ImageMemoryBarrier2> = (images.iter())
+        .map(|&(image, aspect)| {
+            vk::ImageMemoryBarrier2::default()
+                .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+                .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
+                .dst_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+                .dst_access_mask(vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE)
+                .old_layout(old)
+                .new_layout(new)
+                .image(image)
+                .subresource_range(
+                    vk::ImageSubresourceRange::default()
+                        .aspect_mask(aspect)
+                        .level_count(vk::REMAINING_MIP_LEVELS)
+                        .layer_count(vk::REMAINING_ARRAY_LAYERS),
+                )
+        })
+        .collect();
     unsafe {
         gpu.device.cmd_pipeline_barrier2(
             cmd,

@@ -4,7 +4,7 @@ use ash::vk;
 
 use super::Pipeline;
 use crate::error::{Error, Result};
-use crate::gpu::memory::Buffer;
+use crate::gpu::memory::{Buffer, Image};
 
 /// A resource bound at one binding of set 0.
 #[derive(Clone, Copy)]
@@ -12,9 +12,10 @@ pub enum Bind<'a> {
     Buffer(&'a Buffer),
     /// A window of a buffer: (buffer, offset, size) in bytes.
     BufferRange(&'a Buffer, u64, u64),
-    StorageImage(vk::ImageView),
+    /// A storage image in GENERAL layout.
+    StorageImage(&'a Image),
     /// A combined image sampler in SHADER_READ_ONLY_OPTIMAL layout.
-    Sampled(vk::ImageView, vk::Sampler),
+    Sampled(&'a Image, vk::Sampler),
     Accel(vk::AccelerationStructureKHR),
 }
 
@@ -131,14 +132,14 @@ impl Pipeline {
                         .offset(*offset)
                         .range(*size),
                 ),
-                Bind::StorageImage(v) => img_infos.push(
+                Bind::StorageImage(img) => img_infos.push(
                     vk::DescriptorImageInfo::default()
-                        .image_view(*v)
+                        .image_view(img.view)
                         .image_layout(vk::ImageLayout::GENERAL),
                 ),
-                Bind::Sampled(v, s) => img_infos.push(
+                Bind::Sampled(img, s) => img_infos.push(
                     vk::DescriptorImageInfo::default()
-                        .image_view(*v)
+                        .image_view(img.view)
                         .sampler(*s)
                         .image_layout(vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL),
                 ),

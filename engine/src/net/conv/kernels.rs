@@ -7,7 +7,7 @@ use super::lanes::{words, LanesConv, LANES_BLOCKING};
 use super::{pack_lanes, Conv, Epilogue, LanesPack, Storage, Tensor, OCB};
 use crate::error::{Error, Result};
 use crate::gpu::shaders;
-use crate::gpu::{bytes_of, full_barrier, vk, Bind, Buffer, Gpu, Pipeline};
+use crate::gpu::{bytes_of, vk, Bind, Buffer, Gpu, Graph, Pipeline, Use};
 use crate::net::{backend_for, coop_spec, Backend};
 
 /// Output pixels per portable invocation (`PX` in conv_portable.glsl).
@@ -200,10 +200,11 @@ impl NetKernels {
         })
     }
 
-    /// Records `out = epilogue(conv(input))` and a barrier.
+    /// Records `out = epilogue(conv(input))` as a pass of `g` (the weights are constant: they
+    /// never need a barrier).
     pub fn conv(
         &self,
-        cmd: vk::CommandBuffer,
+        g: &mut Graph,
         layer: &Conv,
         input: &Tensor,
         out: &Tensor,
@@ -228,6 +229,27 @@ impl NetKernels {
                 ow
             )));
         }
+        let res = ep.residual.unwrap_or(input);
+        let uses = [
+            Use::Read(Bind::Buffer(&input.buf)),
+            Use::Read(Bind::Buffer(&res.buf)),
+            Use::Write(Bind::Buffer(&out.buf)),
+        ];
+        g.compute("conv", &uses, |cmd| {
+            self.record_conv(cmd, layer, input, out, ep)
+        })
+    }
+
+    /// The dispatches of one layer on the chosen backend (shapes checked by `conv`).
+    fn record_conv(
+        &self,
+        cmd: vk::CommandBuffer,
+        layer: &Conv,
+        input: &Tensor,
+        out: &Tensor,
+        ep: Epilogue,
+    ) -> Result<()> {
+        let (oh, ow) = (out.h, out.w);
         let push = ConvPush {
             in_w: input.w,
             in_h: input.h,
@@ -254,7 +276,7 @@ impl NetKernels {
             ("Out", Bind::Buffer(&out.buf)),
         ];
         if let Some(lanes) = &self.lanes {
-            return lanes.record(&self.gpu, cmd, layer, input, out, ep);
+            return lanes.record(cmd, layer, input, out, ep);
         }
         let (full, rem) = (layer.oc / OCB, layer.oc % OCB);
         match (&self.conv_rem, self.backend) {
@@ -282,12 +304,11 @@ impl NetKernels {
                     .dispatch_groups(cmd, &binds, bytes_of(&push), grid)?;
             }
         }
-        full_barrier(&self.gpu, cmd);
         Ok(())
     }
 
-    /// Records `dst += bilinear_upsample(src)` and a barrier.
-    pub fn upsample_add(&self, cmd: vk::CommandBuffer, src: &Tensor, dst: &Tensor) -> Result<()> {
+    /// Records `dst += bilinear_upsample(src)` as a pass of `g`.
+    pub fn upsample_add(&self, g: &mut Graph, src: &Tensor, dst: &Tensor) -> Result<()> {
         if src.c != dst.c {
             return Err(Error::Other("upsample_add: channel counts differ".into()));
         }
@@ -299,6 +320,23 @@ impl NetKernels {
             c4: dst.c4(),
         };
         let threads = (dst.w * dst.h * dst.c4(), 1, 1);
+        let uses = [
+            Use::Read(Bind::Buffer(&src.buf)),
+            Use::ReadWrite(Bind::Buffer(&dst.buf)),
+        ];
+        g.compute("upsample add", &uses, |cmd| {
+            self.record_up(cmd, src, dst, push, threads)
+        })
+    }
+
+    fn record_up(
+        &self,
+        cmd: vk::CommandBuffer,
+        src: &Tensor,
+        dst: &Tensor,
+        push: UpPush,
+        threads: (u32, u32, u32),
+    ) -> Result<()> {
         if self.lanes.is_some() {
             let push = UpLanesPush {
                 src_addr: words(src.buf.address),
@@ -313,7 +351,6 @@ impl NetKernels {
             ];
             self.up.dispatch(cmd, &binds, bytes_of(&push), threads)?;
         }
-        full_barrier(&self.gpu, cmd);
         Ok(())
     }
 }

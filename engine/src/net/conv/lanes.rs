@@ -6,7 +6,7 @@ use std::sync::Arc;
 use super::{Conv, Epilogue, Tensor};
 use crate::error::{Error, Result};
 use crate::gpu::shaders;
-use crate::gpu::{bytes_of, full_barrier, vk, Gpu, Pipeline};
+use crate::gpu::{bytes_of, vk, Gpu, Pipeline};
 
 /// Push constants of conv_lp_f32.comp (scalar layout; addresses as low, high words).
 #[repr(C)]
@@ -94,10 +94,9 @@ impl LanesConv {
         Ok(LanesConv { pipes, ocn, rows })
     }
 
-    /// Records the dispatch of `out = epilogue(conv(input))` and a barrier.
+    /// Records the dispatch of `out = epilogue(conv(input))`.
     pub(super) fn record(
         &self,
-        gpu: &Arc<Gpu>,
         cmd: vk::CommandBuffer,
         layer: &Conv,
         input: &Tensor,
@@ -142,8 +141,6 @@ impl LanesConv {
             out.h.div_ceil(4 * self.rows),
             layer.oc.div_ceil(self.ocn),
         );
-        pipe.dispatch_groups(cmd, &[], bytes_of(&push), grid)?;
-        full_barrier(gpu, cmd);
-        Ok(())
+        pipe.dispatch_groups(cmd, &[], bytes_of(&push), grid)
     }
 }
