@@ -14,6 +14,8 @@
 // original lights in the shares their diffuse light does), plus each lit lamp x sees through
 // the lobes seen from the novel view (the normal smoothed, lobe.glsl). Under the original
 // lighting the layer gives I_1 back: ratio's image.
+// The shadow rays to the original lights and the lit lamps are shared between neighbouring
+// pixels of one surface (sight.glsl): on lavapipe they were three quarters of the layer.
 // Output: plane 0 (D, Σ w_c), plane 1 (S, the leading lobe + 1; 0: no fit). Holes (no view)
 // are all zero.
 #extension GL_EXT_ray_query : require
@@ -24,7 +26,7 @@
 #extension GL_EXT_shader_16bit_storage : require
 #extension GL_GOOGLE_include_directive : require
 
-layout(local_size_x = 64) in;
+layout(local_size_x = 64) in;  // SIGHT_GROUP (sight.glsl)
 
 #include "frame.glsl"
 #include "emitters.glsl"
@@ -40,32 +42,34 @@ layout(set = 0, binding = 33) readonly buffer GlossyFit { vec4 surface_fit[]; };
 #include "frame_constants.glsl"
 
 #include "lobe.glsl"
+#include "sight.glsl"
 
-// Σ_L i_L Σ_c w_c·X_L,c: the lit lamps x (normal n) sees, through the lobes of strength w seen
-// from unit v.
-vec3 lamps(vec3 x, vec3 n, vec3 v, vec3 w) {
+// Σ_L i_L Σ_c w_c·X_L,c: the lit lamps x (normal n) sees (slot bits `seen` of sight.glsl;
+// lamps past its slots trace their own ray), through the lobes of strength w seen from unit v.
+vec3 lamps(vec3 x, vec3 n, vec3 v, vec3 w, uint seen) {
     vec3 s = vec3(0.0);
+    uint k = min(pc.norig, MAX_ORIG);
     for (uint l = 0u; l < pc.nlights; ++l) {
-        if (intensity[l] <= 0.0 || !sees_light(x, n, emitters[l])) continue;
+        if (intensity[l] <= 0.0) continue;
+        bool sees = k < SIGHT_MAX ? (seen & (1u << k)) != 0u : sees_light(x, n, emitters[l]);
+        ++k;
+        if (!sees) continue;
         float omega;
         vec3 wl;
         light_seen(x, emitters[l], omega, wl);
         if (omega <= 0.0) continue;
-        float k = 0.0;
-        for (uint c = 0u; c < LOBES; ++c)
-            if (w[c] > 0.0) k += w[c] * lobe_weight(lobe_width(c), omega, wl, v, n);
-        s += intensity[l] * emitters[l].radiance.rgb * k;
+        float c = 0.0;
+        for (uint b = 0u; b < LOBES; ++b)
+            if (w[b] > 0.0) c += w[b] * lobe_weight(lobe_width(b), omega, wl, v, n);
+        s += intensity[l] * emitters[l].radiance.rgb * c;
     }
     return s;
 }
 
-// Σ_c w_c·X̄_c: the original lights x (normal n) sees, through the fitted lobes from each input
-// view that sees x and is not grazing (as the sums pass takes them), averaged under I_1's view
-// weights 1/|eye − c_j|². Zero where fewer than GLOSSY_MIN_VIEWS views see x.
-vec3 photos_part(vec3 x, vec3 n, vec3 w) {
-    uint seen = 0u;
-    for (uint l = 0u; l < min(pc.norig, MAX_ORIG); ++l)
-        if (sees_light(x, n, originals[l].light)) seen |= 1u << l;
+// Σ_c w_c·X̄_c: the original lights x (normal n) sees (bits `seen`), through the fitted lobes
+// from each input view that sees x and is not grazing (as the sums pass takes them), averaged
+// under I_1's view weights 1/|eye − c_j|². Zero where fewer than GLOSSY_MIN_VIEWS views see x.
+vec3 photos_part(vec3 x, vec3 n, vec3 w, uint seen) {
     if (seen == 0u) return vec3(0.0);
     vec3 sx = vec3(0.0);
     float sw = 0.0, cnt = 0.0;
@@ -84,24 +88,36 @@ vec3 photos_part(vec3 x, vec3 n, vec3 w) {
     return cnt < float(GLOSSY_MIN_VIEWS) ? vec3(0.0) : sx / sw;
 }
 
-void main() {
-    uint p = gl_GlobalInvocationID.x;
-    uint npix = pc.width * pc.height;
-    if (p >= npix) return;
+// A pixel's surface (x, smoothed normal n), I_1 and its surface's lobe strengths w; false
+// (after writing the layer's "no fit" values) where it has no surface, no photo or no fit.
+bool fitted_pixel(uint p, uint npix, out vec3 x, out vec3 n, out vec3 i1, out vec3 w) {
+    x = vec3(0.0);
+    n = vec3(0.0, 0.0, 1.0);
+    w = vec3(0.0);
     glossy[p] = vec4(0.0);
     glossy[npix + p] = vec4(0.0);
-    vec3 x, n;
+    i1 = vec3(comp[p].rgb);
     float depth;
-    vec3 eye = pc.eye.xyz;
-    vec3 i1 = vec3(comp[p].rgb);
-    if (!surface(p, pc.width, eye, x, n, depth) || all(equal(i1, vec3(0.0)))) return;
+    if (!surface(p, pc.width, pc.eye.xyz, x, n, depth) || all(equal(i1, vec3(0.0)))) return false;
     glossy[p] = vec4(i1, 0.0);
     ivec2 xy = ivec2(p % pc.width, p / pc.width);
     uint tri = imageLoad(g_tri, xy).x;
-    vec3 w = tri > 0u ? surface_fit[tri - 1u].xyz : vec3(0.0);
-    if (w == vec3(0.0)) return;
+    w = tri > 0u ? surface_fit[tri - 1u].xyz : vec3(0.0);
+    if (w == vec3(0.0)) return false;
     n = smooth_normal(xy, n, depth);
-    vec3 xm = photos_part(x, n, w);
+    return true;
+}
+
+void main() {
+    uint p = gl_GlobalInvocationID.x;
+    uint npix = pc.width * pc.height;
+    vec3 x, n, i1, w;
+    bool on = p < npix && fitted_pixel(p, npix, x, n, i1, w);
+    // Every invocation reaches the shared rays (they hold a workgroup barrier).
+    uint seen = shared_sight(on, x, n);
+    if (!on) return;
+    uint no = min(pc.norig, MAX_ORIG);
+    vec3 xm = photos_part(x, n, w, seen & ((1u << no) - 1u));
     float cap = min(1.0, GLOSSY_SHARE * luminance(i1) / max(luminance(xm), 1e-8));
     w *= cap;
     vec3 i8 = vec3(comp[7u * npix + p].rgb);
@@ -111,5 +127,6 @@ void main() {
     vec3 kept = vec3(1.0 - pc.alpha_dim);
     if (pc.per_light != 0u)
         kept = max(vec3(1.0) - irr[2u * npix + p].rgb / max(irr[p].rgb, vec3(E_FLOOR)), vec3(0.0));
-    glossy[npix + p] = vec4(kept * (i1 - d) + lamps(x, n, normalize(eye - x), w), float(lead + 1u));
+    vec3 lit = lamps(x, n, normalize(pc.eye.xyz - x), w, seen);
+    glossy[npix + p] = vec4(kept * (i1 - d) + lit, float(lead + 1u));
 }

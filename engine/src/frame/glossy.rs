@@ -13,6 +13,7 @@
 
 use glam::Vec3;
 
+use super::sight::{shared_sight, sight_lights, SIGHT_MAX};
 use super::RefInputs;
 use crate::bake::GpuLight;
 use crate::constants::{
@@ -44,7 +45,7 @@ pub fn lobe_s_max(c: usize) -> f32 {
 }
 
 /// Centre, unit emitting normal and area of a light.
-fn light_frame(l: &GpuLight) -> (Vec3, Vec3, f32) {
+pub(super) fn light_frame(l: &GpuLight) -> (Vec3, Vec3, f32) {
     let v = |a: [f32; 4]| Vec3::from_slice(&a[..3]);
     if l.p0[3] < 0.5 {
         let cr = v(l.p1).cross(v(l.p2));
@@ -227,11 +228,10 @@ fn views_seeing<'a>(
     })
 }
 
-/// Σ_c w_c·X̄_c at x (`glossy.comp`'s `photos_part`): the seen original lights through the
+/// Σ_c w_c·X̄_c at x (`glossy.comp`'s `photos_part`): the original lights seen (bits `seen`) through the
 /// fitted lobes from each view that sees x, under I_1's view weights; zero under
 /// GLOSSY_MIN_VIEWS views.
-fn photos_part(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> Vec3 {
-    let seen = seen_originals(r, mesh, x, n);
+fn photos_part(r: &RefInputs, seen: u32, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> Vec3 {
     if seen == 0 {
         return Vec3::ZERO;
     }
@@ -320,25 +320,34 @@ pub fn reference(
 ) -> Vec<[f32; 4]> {
     let npix = (r.width * r.height) as usize;
     let mut out = vec![[0f32; 4]; PLANES * npix];
-    for p in 0..npix {
+    // The fitted pixels: (x, smoothed n) and the surface's strengths.
+    let fitted: Vec<Option<(Vec3, Vec3, [f32; LOBES])>> = (0..npix)
+        .map(|p| {
+            let i1 = Vec3::from_slice(&comp[p][..3]);
+            let (x, n) = r.surface(p).filter(|_| i1 != Vec3::ZERO)?;
+            out[p] = [i1.x, i1.y, i1.z, 0.0];
+            let w = fit.at(p).filter(|w| w.iter().any(|&v| v > 0.0))?;
+            Some((x, smooth_normal(r, p, n), w))
+        })
+        .collect();
+    let pts: Vec<_> = fitted.iter().map(|f| f.map(|(x, n, _)| (x, n))).collect();
+    let lights = sight_lights(r, MAX_ORIG);
+    let seen = shared_sight(mesh, &lights, &pts);
+    let no = r.originals.len().min(MAX_ORIG);
+    for (p, f) in fitted.iter().enumerate() {
+        let Some((x, n, mut w)) = *f else {
+            continue;
+        };
         let i1 = Vec3::from_slice(&comp[p][..3]);
-        let Some((x, n)) = r.surface(p).filter(|_| i1 != Vec3::ZERO) else {
-            continue;
-        };
-        out[p] = [i1.x, i1.y, i1.z, 0.0];
-        let Some(mut w) = fit.at(p).filter(|w| w.iter().any(|&v| v > 0.0)) else {
-            continue;
-        };
-        let n = smooth_normal(r, p, n);
         // At most GLOSSY_SHARE of I_1's luminance is called view-dependent, and D stays at or
         // above the darkest photo (I_8).
-        let xm = photos_part(r, mesh, (x, n), w);
+        let xm = photos_part(r, seen[p] & ((1 << no) - 1), (x, n), w);
         let lum = super::reproject::luminance;
         let cap = (GLOSSY_SHARE * lum(i1) / lum(xm).max(1e-8)).min(1.0);
         w = w.map(|v| v * cap);
         let i8 = Vec3::from_slice(&comp[7 * npix + p][..3]);
         let d = (i1 - cap * xm).max(i8.min(i1)).max(Vec3::ZERO);
-        let st = kept(r, irr, p) * (i1 - d) + lamps(r, mesh, (x, n), w);
+        let st = kept(r, irr, p) * (i1 - d) + lamps(r, mesh, (x, n), w, seen[p]);
         let lead = (0..LOBES).fold(0, |b, c| if w[c] > w[b] { c } else { b });
         out[p] = [d.x, d.y, d.z, w.iter().sum()];
         out[npix + p] = [st.x, st.y, st.z, (lead + 1) as f32];
@@ -346,16 +355,25 @@ pub fn reference(
     out
 }
 
-/// Σ_L i_L Σ_c w_c·X_L,c: the lit lamps x sees through the lobes around the novel view's
-/// mirror direction.
-fn lamps(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES]) -> Vec3 {
+/// Σ_L i_L Σ_c w_c·X_L,c: the lit lamps x sees (slot bits `seen`, [`super::sight`]; lamps past
+/// its slots trace their own ray) through the lobes around the novel view's mirror direction.
+fn lamps(r: &RefInputs, mesh: &Mesh, (x, n): (Vec3, Vec3), w: [f32; LOBES], seen: u32) -> Vec3 {
     let v = (r.eye - x).normalize();
     let mut s = Vec3::ZERO;
+    let mut k = r.originals.len().min(MAX_ORIG);
     for (l, e) in r.emitters.iter().enumerate() {
-        let k = r.intensities.get(l).copied().unwrap_or(0.0);
-        if k > 0.0 && sees_light(mesh, x, n, e) {
+        let i = r.intensities.get(l).copied().unwrap_or(0.0);
+        if i <= 0.0 {
+            continue;
+        }
+        let sees = match k < SIGHT_MAX {
+            true => seen & 1 << k != 0,
+            false => sees_light(mesh, x, n, e),
+        };
+        k += 1;
+        if sees {
             for c in (0..LOBES).filter(|&c| w[c] > 0.0) {
-                s += w[c] * k * lobe_light(x, v, n, lobe_width(c), e);
+                s += w[c] * i * lobe_light(x, v, n, lobe_width(c), e);
             }
         }
     }

@@ -20,6 +20,7 @@ pub mod reference;
 pub mod renderer;
 pub mod reproject;
 pub mod scene;
+pub mod sight;
 pub mod target_mirror;
 pub mod view_cull;
 

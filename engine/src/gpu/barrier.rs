@@ -3,6 +3,7 @@
 
 use ash::vk;
 
+use super::memory::every_subresource;
 use super::{Bind, Gpu};
 
 /// What a barrier names: a whole buffer, an image in the layout its binding uses (no layout
@@ -106,12 +107,7 @@ pub(crate) fn record(
                     .old_layout(layout)
                     .new_layout(layout)
                     .image(i)
-                    .subresource_range(
-                        vk::ImageSubresourceRange::default()
-                            .aspect_mask(aspect)
-                            .level_count(vk::REMAINING_MIP_LEVELS)
-                            .layer_count(vk::REMAINING_ARRAY_LAYERS),
-                    ),
+                    .subresource_range(every_subresource(aspect)),
             ),
             Target::Global => mems.push(
                 vk::MemoryBarrier2::default()

@@ -152,12 +152,7 @@ pub fn image_barriers(
                 .old_layout(old)
                 .new_layout(new)
                 .image(image)
-                .subresource_range(
-                    vk::ImageSubresourceRange::default()
-                        .aspect_mask(aspect)
-                        .level_count(vk::REMAINING_MIP_LEVELS)
-                        .layer_count(vk::REMAINING_ARRAY_LAYERS),
-                )
+                .subresource_range(every_subresource(aspect))
         })
         .collect();
     unsafe {
@@ -166,6 +161,14 @@ pub fn image_barriers(
             &vk::DependencyInfo::default().image_memory_barriers(&ib),
         )
     };
+}
+
+/// Every mip and layer of an image's `aspect`.
+pub fn every_subresource(aspect: vk::ImageAspectFlags) -> vk::ImageSubresourceRange {
+    vk::ImageSubresourceRange::default()
+        .aspect_mask(aspect)
+        .level_count(vk::REMAINING_MIP_LEVELS)
+        .layer_count(vk::REMAINING_ARRAY_LAYERS)
 }
 
 /// An allocation failure in the user's terms: which resource, how big, and what to change
