@@ -1,6 +1,6 @@
 #version 460
 // The view-dependent layer (§3: L = a·E + S). A pixel takes the lobes' strengths w_c of its
-// surface (`surface_fit`, per triangle through g_tri: frame/glossy_fit.rs pooled every photo of
+// surface (`surface_fit`, per triangle through g_tri: frame/glossy_fit/ pooled every photo of
 // that surface and material once per scene); where the surface has none the layer is today's
 // image (D = I_1, S = 0: ratio's).
 // The photos' view-dependent part in I_1 is Σ_c w_c·X̄_c: the original lights x sees through

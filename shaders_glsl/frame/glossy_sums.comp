@@ -1,6 +1,6 @@
 #version 460
 // The view-dependent layer's sums (§3: L = a·E + S), which the fit per surface pools
-// (frame/glossy_fit.rs renders them from the input cameras). At each pixel the input views j that see the surface point x give a
+// (frame/glossy_fit/ renders them from the input cameras). At each pixel the input views j that see the surface point x give a
 // photo value I_j and three regressors X_j,c: the declared original lights x sees, through a
 // GGX lobe of roughness GLOSSY_LOBE_1..3 seen from view j (lobe.glsl; the normal smoothed over
 // the surface around x, `smooth_normal`); views more grazing than GLOSSY_COS_MIN are skipped.

@@ -3,9 +3,9 @@
 // surface, and a ray query costs a whole SIMD vector of pixels on a CPU device (and a warp on a
 // GPU) whether one lane traces or all: so the lights are dealt out, pixel i of the workgroup
 // tracing slot r·m + i mod m in round r (m = min(slots, GLOSSY_SIGHT_SPAN)), and each pixel
-// takes a slot's answer from the nearest pixel that traced it, where that pixel lies on the
-// same surface (within GLOSSY_SIGHT_DIST, normals within ~25°) and traced it; else it traces
-// its own ray.
+// takes a slot's answer from the two nearest pixels that traced it, one on each side, that lie
+// on its surface (within GLOSSY_SIGHT_DIST, normals within ~25°); where they disagree (a
+// shadow's edge) or none may answer, it traces its own ray.
 // Slots: the original lights (at most MAX_ORIG), then the lit added lights in order, at most
 // SIGHT_MAX in all. The includer includes lobe.glsl and runs in workgroups of SIGHT_GROUP
 // invocations over consecutive pixels, reaching `shared_sight` in uniform control flow.
@@ -49,15 +49,29 @@ Light sight_light(uint k, uint no) {
     return emitters[0];
 }
 
-// Slot k's answer at this pixel (li in the workgroup), from the pixel that traced it when it
-// may stand in for this one, else from a ray of its own.
+// Round r's answer of pixel j for a pixel at x, normal n: 1 seen, 0 not, −1 none it may take
+// (j outside the workgroup, another surface, or j did not trace).
+int answer(int j, uint r, vec3 x, vec3 n) {
+    if (j < 0 || j >= int(SIGHT_GROUP)) return -1;
+    uint b = (sight_bits[j] >> (2u * r)) & 3u;
+    bool near = distance(sight_x[j], x) <= GLOSSY_SIGHT_DIST && dot(sight_n[j], n) >= 0.9;
+    return (b & 1u) != 0u && near ? int(b >> 1u) : -1;
+}
+
+// Slot k's answer at this pixel (li in the workgroup): its own where it traced k; else that of
+// the two nearest pixels that traced it, one on each side, where they agree, or of the one it
+// may take (the other outside the workgroup or on another surface); a ray of its own where
+// they disagree (a shadow's edge) or neither may answer.
 bool slot_seen(uint k, uint m, uint li, vec3 x, vec3 n, Light l) {
     if (!faces_light(x, n, l)) return false;
-    uint j = li - li % m + k % m;
-    if (j >= SIGHT_GROUP) j -= m;
-    uint b = (sight_bits[j] >> (2u * (k / m))) & 3u;
-    bool near = j == li || (distance(sight_x[j], x) <= GLOSSY_SIGHT_DIST && dot(sight_n[j], n) >= 0.9);
-    return near && (b & 1u) != 0u ? (b & 2u) != 0u : sees_light(x, n, l);
+    uint r = k / m, c = k % m;
+    int j0 = int(li) - int((li + m - c) % m);
+    int a0 = answer(j0, r, x, n);
+    if (j0 == int(li) && a0 >= 0) return a0 == 1;
+    int a1 = j0 == int(li) ? -1 : answer(j0 + int(m), r, x, n);
+    if (a0 >= 0 && a1 >= 0 && a0 != a1) return sees_light(x, n, l);
+    if (max(a0, a1) >= 0) return max(a0, a1) == 1;
+    return sees_light(x, n, l);
 }
 
 // Bit k: whether this pixel (`on`: it needs the answers) at x, normal n, sees slot k's light.

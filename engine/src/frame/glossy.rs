@@ -3,7 +3,7 @@
 //! (RGB D, grey w_c), X_j,c the declared original lights through a GGX microfacet lobe of
 //! roughness GLOSSY_LOBE_1..3 seen from view j, with Schlick's Fresnel (`lobe.glsl`; w_c then
 //! reads as the surface's F0). The sums pass gathers each pixel's centred sums over the views;
-//! the fit per surface (`glossy_fit.rs`) renders it from the input cameras once per scene and
+//! the fit per surface (`glossy_fit/`) renders it from the input cameras once per scene and
 //! pools it over every photo of a surface. The layer takes the strengths of the pixel's surface
 //! (none: ratio's image); it gives the diffuse part D, which eq. 5 relights, and the
 //! view-dependent part S: the photos' own (I_1 − D), dimmed with their lights, plus each lit
@@ -36,7 +36,7 @@ fn lobe_width(c: usize) -> f32 {
     [GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3][c]
 }
 
-/// The largest strength lobe c may take in the fit per surface (`glossy_fit.rs`):
+/// The largest strength lobe c may take in the fit per surface (`glossy_fit/`):
 /// GLOSSY_S_MAX for the narrowest, less for wider ones in proportion to their roughness (a rough
 /// surface that reflects as much as a mirror is a rough metal, rare indoors; a near-mirror
 /// blurred by its proxy would otherwise take a wide lobe and glow around every lamp).

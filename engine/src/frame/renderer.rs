@@ -51,7 +51,7 @@ pub struct Renderer {
     /// pixels (`output.glsl`'s `hole_fill`): the viewer's moving frame, which would show them
     /// black. Off by default: renders and evaluations score holes as the mode leaves them.
     pub fill_holes: bool,
-    /// The view-dependent fit per triangle (frame/glossy_fit.rs) and the view left out when it
+    /// The view-dependent fit per triangle (frame/glossy_fit/) and the view left out when it
     /// was made; None until a frame needs it. Zeros while it is being made.
     pub(super) glossy_fit: Option<(Option<u32>, Buffer)>,
     pub(super) fitting: bool,
@@ -242,7 +242,7 @@ impl Renderer {
                 g.dispatch("target mirror", &self.target_mirror, push, threads)?;
             }
             if self.runs_glossy(mode) {
-                // The sums only feed the fit per surface (frame/glossy_fit.rs).
+                // The sums only feed the fit per surface (frame/glossy_fit/).
                 let (name, pass) = match self.fitting {
                     true => ("glossy sums", &self.glossy_sums),
                     false => ("glossy layer", &self.glossy),

@@ -12,18 +12,23 @@
 //! (normals within ~25°, off the plane by at most 3 cm + 10 % of the distance). Centred sums
 //! add up: the pooled fit is one strength per lobe with a diffuse part per pixel. The lobe
 //! with the largest t statistic (slope over its standard error) wins if that exceeds
-//! `GLOSSY_REGION_T`; otherwise the patch has none. The result is one vec4 per triangle
-//! (w_1..3, t), which `glossy.comp` reads through the G-buffer's triangle ids.
+//! `GLOSSY_REGION_T`; otherwise the patch has none. A triangle takes its surface's patches'
+//! fits around it under a tent of half a metre (`Near`), so that strengths change smoothly.
+//! The result is one vec4 per triangle (w_1..3, t), which `glossy.comp` reads through the
+//! G-buffer's triangle ids.
 
 use std::collections::{BTreeMap, HashMap};
 
 use glam::Vec3;
+
+mod smooth;
 
 use super::{glossy, Lighting, Mode, Renderer};
 use crate::constants::{E_FLOOR, GLOSSY_REGION, GLOSSY_REGION_T};
 use crate::error::Result;
 use crate::gpu::{vk, Buffer};
 use crate::scene::{Camera, Mesh};
+use smooth::Near;
 
 /// Width in pixels of the renders from the input cameras.
 const FIT_WIDTH: u32 = 128;
@@ -260,8 +265,9 @@ impl<'a> Reach<'a> {
     }
 }
 
-/// Per triangle of `mesh`: (w_1..3, t) from the sums pooled over its surface (module comment).
-/// A triangle no render saw takes the fit of its cell's patch with the most pixels.
+/// Per triangle of `mesh`: (w_1..3, t) from the sums pooled over its surface (module comment),
+/// smoothed between patches (`Near`). A triangle no render saw takes the fit of its cell's patch
+/// with the most pixels.
 pub fn pool(mesh: &Mesh, acc: &[FitSums]) -> Vec<[f32; 4]> {
     let (patches, of_tri) = patches(mesh, acc);
     let reach = Reach::new(&patches);
@@ -272,12 +278,18 @@ pub fn pool(mesh: &Mesh, acc: &[FitSums]) -> Vec<[f32; 4]> {
             (*k, f.collect())
         })
         .collect();
-    (of_tri.iter())
-        .map(|(k, bin)| {
+    let near = Near::new(&patches, &fits);
+    (mesh.triangles.iter().zip(&of_tri))
+        .map(|(tri, (k, bin))| {
             let list = fits.get(k).map_or(&[][..], |v| &v[..]);
-            let own = list.iter().find(|(b, _, _)| Some(*b) == *bin);
-            let most = list.iter().max_by(|a, b| a.2.total_cmp(&b.2));
-            own.or(most).map_or([0.0; 4], |f| f.1)
+            let own = list.iter().position(|(b, _, _)| Some(*b) == *bin);
+            let most = (0..list.len()).max_by(|&a, &b| list[a].2.total_cmp(&list[b].2));
+            let centre = tri
+                .map(|i| Vec3::from(mesh.positions[i as usize]))
+                .iter()
+                .sum::<Vec3>();
+            own.or(most)
+                .map_or([0.0; 4], |i| near.at(&(*k, i), centre / 3.0, list[i].1))
         })
         .collect()
 }
@@ -362,7 +374,7 @@ impl Renderer {
         self.refit_glossy().map(|_| ())
     }
 
-    /// Makes the view-dependent fit per surface again (frame/glossy_fit.rs) and returns how long
+    /// Makes the view-dependent fit per surface again (frame/glossy_fit/) and returns how long
     /// it took: what a scene's first glossy frame adds (`relit bench frame` reports it).
     pub fn refit_glossy(&mut self) -> Result<std::time::Duration> {
         let t0 = std::time::Instant::now();
