@@ -107,19 +107,6 @@ impl<'a, 't> Graph<'a, 't> {
         self.dispatch(label, p, push, threads)
     }
 
-    /// [`Graph::pass`] in exactly `groups` workgroups.
-    pub fn pass_groups(
-        &mut self,
-        label: &str,
-        p: &Pipeline,
-        binds: impl IntoIterator<Item = (&'a str, Bind<'a>)>,
-        push: &[u8],
-        groups: (u32, u32, u32),
-    ) -> Result<()> {
-        self.set_declared(label, p, binds)?;
-        self.dispatch_groups(label, p, push, groups)
-    }
-
     /// A compute pass of exactly `groups` workgroups.
     pub fn dispatch_groups(
         &mut self,
@@ -219,7 +206,7 @@ impl<'a, 't> Graph<'a, 't> {
     /// Ends the graph for commands recorded after it outside any graph (a copy to the
     /// swapchain image): what it wrote is made visible to them, and the open span ends.
     pub fn finish(mut self) -> Result<BarrierCount> {
-        self.close()?;
+        self.boundary(None)?;
         if !self.written.is_empty() {
             self.barrier();
         }
@@ -371,17 +358,12 @@ impl<'a, 't> Graph<'a, 't> {
         self.spans.flush_due = self.gpu.caps.device_type == vk::PhysicalDeviceType::CPU;
         Ok(())
     }
-
-    /// Ends the open span.
-    fn close(&mut self) -> Result<()> {
-        self.boundary(None)
-    }
 }
 
 impl Drop for Graph<'_, '_> {
     /// The last span ends where the graph does (a full timer has already said so).
     fn drop(&mut self) {
-        let _ = self.close();
+        let _ = self.boundary(None);
     }
 }
 
