@@ -8,12 +8,13 @@
 // (`photos_part`); it is lowered where it would exceed GLOSSY_SHARE of I_1, and D = I_1 minus
 // it, but never below the darkest photo of x (I_8: every photo holds D plus a non-negative
 // view-dependent part).
-// S = k·(I_1 − D) + Σ_L i_L Σ_c w_c·X_L,c: the photos' own highlights as they are, dimmed with
-// their lights (eq. 5 would scale them by the diffuse ratio; k = 1 − α_dim, or with per-light
-// factors what remains of E_src, 1 − E_rem / E_src: a highlight is taken to come from the
-// original lights in the shares their diffuse light does), plus each lit lamp x sees through
-// the lobes seen from the novel view (the normal smoothed, lobe.glsl). Under the original
-// lighting the layer gives I_1 back: ratio's image.
+// S = k·max(I_1 − D + Σ_c w_c·X_c − Σ_c w_c·X̄_c, 0) + Σ_L i_L Σ_c w_c·X_L,c: the photos' own
+// highlights moved to the novel view (X_c: the original lights through the lobes seen from the
+// novel view), dimmed with their lights (eq. 5 would scale them by the diffuse ratio; k =
+// 1 − α_dim, or with per-light factors what remains of E_src, 1 − E_rem / E_src: a highlight
+// is taken to come from the original lights in the shares their diffuse light does), plus
+// each lit lamp x sees through the lobes seen from the novel view (the normal smoothed,
+// lobe.glsl). Under the original lighting the layer is I_1 where there is no fit: ratio's.
 // The shadow rays to the original lights and the lit lamps are shared between neighbouring
 // pixels of one surface (sight.glsl): on lavapipe they were three quarters of the layer.
 // Output: plane 0 (D, Σ w_c), plane 1 (S, the leading lobe + 1; 0: no fit). Holes (no view)
@@ -127,6 +128,10 @@ void main() {
     vec3 kept = vec3(1.0 - pc.alpha_dim);
     if (pc.per_light != 0u)
         kept = max(vec3(1.0) - irr[2u * npix + p].rgb / max(irr[p].rgb, vec3(E_FLOOR)), vec3(0.0));
-    vec3 lit = lamps(x, n, normalize(pc.eye.xyz - x), w, seen);
-    glossy[npix + p] = vec4(kept * (i1 - d) + lit, float(lead + 1u));
+    vec3 v = normalize(pc.eye.xyz - x);
+    // The photos' highlights moved to the novel view: what the lobes give there less what they
+    // gave the photos (w carries the cap: cap·X̄ is what D lost).
+    vec3 own = max(i1 - d + lobes_originals(x, v, n, seen & ((1u << no) - 1u), w) - cap * xm,
+                   vec3(0.0));
+    glossy[npix + p] = vec4(kept * own + lamps(x, n, v, w, seen), float(lead + 1u));
 }

@@ -1,15 +1,16 @@
 //! The view-dependent layer (§3: L = a·E + S): `shaders_glsl/frame/glossy_sums.comp` and
 //! `glossy.comp`. The photos that see a surface point are fitted as `I_j ≈ D + Σ_c w_c·X_j,c`
 //! (RGB D, grey w_c), X_j,c the declared original lights through a GGX microfacet lobe of
-//! roughness GLOSSY_LOBE_1..3 seen from view j, with Schlick's Fresnel (`lobe.glsl`; w_c then
-//! reads as the surface's F0). The sums pass gathers each pixel's centred sums over the views;
-//! the fit per surface (`glossy_fit/`) renders it from the input cameras once per scene and
-//! pools it over every photo of a surface. The layer takes the strengths of the pixel's surface
-//! (none: ratio's image); it gives the diffuse part D, which eq. 5 relights, and the
-//! view-dependent part S: the photos' own (I_1 − D), dimmed with their lights, plus each lit
-//! lamp through the lobes seen from the novel view. Glossy mode shows `D · (E_add + E_src − E_rem) / E_src + S`
-//! (`output.glsl`): ratio's image under the original lighting, and where no fit holds. Both
-//! passes' push constants are the frame's ([`super::FrameConstants`]).
+//! roughness GLOSSY_LOBE_1..3 seen from view j, with Schlick's Fresnel and Smith's masking
+//! (`lobe.glsl`; w_c then reads as the surface's F0). The sums pass gathers each pixel's centred
+//! sums over the views; the fit per surface (`glossy_fit/`) renders it from the input cameras
+//! once per scene and pools it over every photo of a surface. The layer takes the strengths of
+//! the pixel's surface (none: ratio's image); it gives the diffuse part D, which eq. 5 relights,
+//! and the view-dependent part S: the photos' own (I_1 − D) moved to the novel view (plus what
+//! the lobes give there, less what they gave the photos), dimmed with their lights, plus each
+//! lit lamp through the lobes seen from the novel view. Glossy mode shows
+//! `D · (E_add + E_src − E_rem) / E_src + S` (`output.glsl`): ratio's image where no fit holds.
+//! Both passes' push constants are the frame's ([`super::FrameConstants`]).
 
 use glam::Vec3;
 
@@ -71,8 +72,9 @@ pub fn sees_light(mesh: &Mesh, x: Vec3, n: Vec3, l: &GpuLight) -> bool {
 }
 
 /// The GGX lobe of roughness α that light l (solid angle Ω, unit direction w from x) gives
-/// towards unit v over normal n (`lobe.glsl`'s `lobe_weight`): Ω·D(n·h)·F(v·h)/(4·n·v·F0), α
-/// widened to α'² = α² + Ω/8π, F Schlick's with F0 = 0.04; zero below GLOSSY_COS_MIN.
+/// towards unit v over normal n (`lobe.glsl`'s `lobe_weight`):
+/// Ω·D(n·h)·F(v·h)·G1(n·v)·G1(n·w)/(4·n·v·F0), α widened to α'² = α² + Ω/8π in D, F Schlick's
+/// with F0 = 0.04, G1 Smith's masking; zero below GLOSSY_COS_MIN.
 pub fn lobe_weight(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> f32 {
     use std::f32::consts::PI;
     let cv = n.dot(v);
@@ -84,7 +86,13 @@ pub fn lobe_weight(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> f32 {
     let ch = n.dot(h).max(0.0);
     let t = ch * ch * (a2 - 1.0) + 1.0;
     let f = 1.0 + (1.0 / 0.04 - 1.0) * (1.0 - v.dot(h).clamp(0.0, 1.0)).powi(5);
-    omega * a2 / (PI * t * t) * f / (4.0 * cv)
+    omega * a2 / (PI * t * t) * f * smith_g1(alpha, cv) * smith_g1(alpha, n.dot(w)) / (4.0 * cv)
+}
+
+/// Smith's GGX masking of one direction at cosine `c` to the normal.
+fn smith_g1(alpha: f32, c: f32) -> f32 {
+    let a2 = alpha * alpha;
+    2.0 * c / (c + (a2 + (1.0 - a2) * c * c).sqrt())
 }
 
 /// Light l's solid angle from x (0 from behind) and the unit direction to its centre.
@@ -347,7 +355,14 @@ pub fn reference(
         w = w.map(|v| v * cap);
         let i8 = Vec3::from_slice(&comp[7 * npix + p][..3]);
         let d = (i1 - cap * xm).max(i8.min(i1)).max(Vec3::ZERO);
-        let st = kept(r, irr, p) * (i1 - d) + lamps(r, mesh, (x, n), w, seen[p]);
+        let so = seen[p] & ((1 << no) - 1);
+        let v = (r.eye - x).normalize();
+        let here: Vec3 = (0..LOBES)
+            .filter(|&c| w[c] > 0.0)
+            .map(|c| w[c] * lobe_originals(r, so, (x, n), v, c))
+            .sum();
+        let own = (i1 - d + here - cap * xm).max(Vec3::ZERO);
+        let st = kept(r, irr, p) * own + lamps(r, mesh, (x, n), w, seen[p]);
         let lead = (0..LOBES).fold(0, |b, c| if w[c] > w[b] { c } else { b });
         out[p] = [d.x, d.y, d.z, w.iter().sum()];
         out[npix + p] = [st.x, st.y, st.z, (lead + 1) as f32];
@@ -392,4 +407,47 @@ pub fn reference_image(glossy: &[[f32; 4]], irr: &[[f32; 4]], npix: usize) -> Ve
             })
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Smith's masking is GGX's own: the microfacets' projected area towards any view equals
+    /// the surface's, ∫ G1(v)·D(h)·max(v·h, 0) dω_h = n·v (Heitz 2014, eq. 2 with 17).
+    #[test]
+    fn smith_masking_matches_the_ggx_distribution() {
+        use std::f32::consts::PI;
+        let (nt, np) = (2000, 200);
+        for alpha in [0.04f32, 0.12, 0.25, 0.5] {
+            for cv in [0.95f32, 0.6, 0.3, 0.1] {
+                let v = Vec3::new((1.0 - cv * cv).sqrt(), cv, 0.0);
+                let a2 = alpha * alpha;
+                let mut sum = 0.0f64;
+                for i in 0..nt {
+                    // θ_h over [0, π/2) in tan-space steps that follow the lobe's width.
+                    let (u0, u1) = (i as f32 / nt as f32, (i + 1) as f32 / nt as f32);
+                    let th = |u: f32| match u < 1.0 {
+                        true => (alpha * (u * 0.5 * PI).tan()).atan(),
+                        false => 0.5 * PI,
+                    };
+                    let (t0, t1) = (th(u0), th(u1));
+                    let t = 0.5 * (t0 + t1);
+                    let ch = t.cos();
+                    let d = a2 / (PI * (ch * ch * (a2 - 1.0) + 1.0).powi(2));
+                    for j in 0..np {
+                        let ph = (j as f32 + 0.5) / np as f32 * 2.0 * PI;
+                        let h = Vec3::new(t.sin() * ph.cos(), ch, t.sin() * ph.sin());
+                        let dw = t.sin() * (t1 - t0) * 2.0 * PI / np as f32;
+                        sum += (d * v.dot(h).max(0.0) * dw) as f64;
+                    }
+                }
+                let got = smith_g1(alpha, cv) as f64 * sum;
+                assert!(
+                    (got - cv as f64).abs() < 0.01 * cv as f64,
+                    "α {alpha}, n·v {cv}: {got}"
+                );
+            }
+        }
+    }
 }
