@@ -387,7 +387,9 @@ fn the_fit_per_surface_finds_the_floors_strength_and_leaves_the_walls_diffuse() 
         .glossy_fit()
         .unwrap()
         .expect("a glossy frame made the fit");
-    assert_eq!(fit.len(), t.mesh.triangles.len());
+    // The fits, then the surface normals.
+    assert_eq!(fit.len(), 2 * t.mesh.triangles.len());
+    let (fit, normals) = fit.split_at(t.mesh.triangles.len());
     let (mut floor, mut floor_ok, mut walls, mut walls_fit) = (0, 0, 0, 0);
     for (i, f) in fit.iter().enumerate() {
         let n = t.mesh.face_normal(i);
@@ -396,6 +398,8 @@ fn the_fit_per_surface_finds_the_floors_strength_and_leaves_the_walls_diffuse() 
             // (Facing up: the boxes' bottoms lie on the floor too.) The photos' lobe (GLOSSY_LOBE_2) alone, at S_TRUE within 15 %.
             floor += 1;
             let ok = f[0] == 0.0 && f[2] == 0.0 && (f[1] - S_TRUE).abs() <= 0.15 * S_TRUE;
+            // A flat floor's triangles take its normal.
+            assert!(normals[i][1].abs() > 0.9999, "{:?}", normals[i]);
             floor_ok += ok as usize;
         } else if n.y.abs() < 0.1 {
             walls += 1;

@@ -38,7 +38,8 @@ layout(set = 0, binding = 13) readonly buffer Comp { f16vec4 comp[]; };
 layout(set = 0, binding = 14) readonly buffer Irr { vec4 irr[]; };   // E_src, E_add, E_rem
 layout(set = 0, binding = 30) writeonly buffer Glossy { vec4 glossy[]; };
 layout(set = 0, binding = 20, r32ui) readonly uniform uimage2D g_tri;
-layout(set = 0, binding = 33) readonly buffer GlossyFit { vec4 surface_fit[]; };  // per triangle
+// Per triangle: the fits (w_1..3, t), then the surface normals (frame/glossy_fit/).
+layout(set = 0, binding = 33) readonly buffer GlossyFit { vec4 surface_fit[]; };
 
 #include "frame_constants.glsl"
 
@@ -105,7 +106,9 @@ bool fitted_pixel(uint p, uint npix, out vec3 x, out vec3 n, out vec3 i1, out ve
     uint tri = imageLoad(g_tri, xy).x;
     w = tri > 0u ? surface_fit[tri - 1u].xyz : vec3(0.0);
     if (w == vec3(0.0)) return false;
-    n = smooth_normal(xy, n, depth);
+    // The surface's normal where the fit has one (a flat surface), facing the G-buffer's.
+    vec3 ns = surface_fit[uint(surface_fit.length()) / 2u + tri - 1u].xyz;
+    n = ns != vec3(0.0) ? (dot(ns, n) < 0.0 ? -ns : ns) : smooth_normal(xy, n, depth);
     return true;
 }
 

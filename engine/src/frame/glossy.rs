@@ -301,18 +301,20 @@ fn kept(r: &RefInputs, irr: &[[f32; 4]], p: usize) -> Vec3 {
     (Vec3::ONE - Vec3::from_slice(&irr[2 * npix + p][..3]) / es).max(Vec3::ZERO)
 }
 
-/// The surface fit a pixel falls back on: the fit per triangle ([`super::glossy_fit`]) and the
-/// novel view's triangle ids (+1, 0: none).
+/// The surface fit a pixel falls back on: the fit per triangle ([`super::glossy_fit`]: the
+/// fits, then the surface normals) and the novel view's triangle ids (+1, 0: none).
 pub struct SurfaceFit<'a> {
     pub per_tri: &'a [[f32; 4]],
     pub gtri: &'a [u32],
 }
 
 impl SurfaceFit<'_> {
-    fn at(&self, p: usize) -> Option<[f32; LOBES]> {
-        let t = *self.gtri.get(p)?;
-        let f = self.per_tri.get((t as usize).checked_sub(1)?)?;
-        Some([f[0], f[1], f[2]])
+    /// Pixel p's surface: its strengths and its surface normal (zero: none).
+    fn at(&self, p: usize) -> Option<([f32; LOBES], Vec3)> {
+        let t = (*self.gtri.get(p)? as usize).checked_sub(1)?;
+        let f = self.per_tri.get(t)?;
+        let n = self.per_tri.get(self.per_tri.len() / 2 + t)?;
+        Some(([f[0], f[1], f[2]], Vec3::new(n[0], n[1], n[2])))
     }
 }
 
@@ -334,8 +336,12 @@ pub fn reference(
             let i1 = Vec3::from_slice(&comp[p][..3]);
             let (x, n) = r.surface(p).filter(|_| i1 != Vec3::ZERO)?;
             out[p] = [i1.x, i1.y, i1.z, 0.0];
-            let w = fit.at(p).filter(|w| w.iter().any(|&v| v > 0.0))?;
-            Some((x, smooth_normal(r, p, n), w))
+            let (w, ns) = fit.at(p).filter(|(w, _)| w.iter().any(|&v| v > 0.0))?;
+            let n = match ns == Vec3::ZERO {
+                true => smooth_normal(r, p, n),
+                false => ns * ns.dot(n).signum(),
+            };
+            Some((x, n, w))
         })
         .collect();
     let pts: Vec<_> = fitted.iter().map(|f| f.map(|(x, n, _)| (x, n))).collect();

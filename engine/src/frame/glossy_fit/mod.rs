@@ -14,8 +14,9 @@
 //! with the largest t statistic (slope over its standard error) wins if that exceeds
 //! `GLOSSY_REGION_T`; otherwise the patch has none. A triangle takes its surface's patches'
 //! fits around it under a tent of half a metre (`Near`), so that strengths change smoothly.
-//! The result is one vec4 per triangle (w_1..3, t), which `glossy.comp` reads through the
-//! G-buffer's triangle ids.
+//! The result is one vec4 per triangle (w_1..3, t), then one per triangle with its surface's
+//! normal where the triangle lies within PLANE_TILT of it (a flat floor from photos is bumpy;
+//! zero elsewhere), which `glossy.comp` reads through the G-buffer's triangle ids.
 
 use std::collections::{BTreeMap, HashMap};
 
@@ -37,6 +38,8 @@ const FIT_VIEWS: usize = 48;
 /// Edge of a patch's grid cell (m).
 const CELL: f32 = 0.25;
 const LOBES: usize = 3;
+/// Degrees a triangle may tilt from its surface's normal and still take it (`surface_normal`).
+const PLANE_TILT: f32 = 10.0;
 /// Pseudo-albedos of one material differ by at most this factor per channel (shading the bake
 /// misses, photo noise); ALBEDO_EPS keeps dark channels from deciding alone.
 const ALBEDO_RATIO: f32 = 1.4;
@@ -266,9 +269,9 @@ impl<'a> Reach<'a> {
 }
 
 /// Per triangle of `mesh`: (w_1..3, t) from the sums pooled over its surface (module comment),
-/// smoothed between patches (`Near`). A triangle no render saw takes the fit of its cell's patch
-/// with the most pixels.
-pub fn pool(mesh: &Mesh, acc: &[FitSums]) -> Vec<[f32; 4]> {
+/// smoothed between patches (`Near`), and its surface's normal (`surface_normal`). A triangle
+/// no render saw takes the fit of its cell's patch with the most pixels.
+pub fn pool(mesh: &Mesh, acc: &[FitSums]) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
     let (patches, of_tri) = patches(mesh, acc);
     let reach = Reach::new(&patches);
     let fits: HashMap<Cell, CellFits> = (patches.iter())
@@ -284,14 +287,28 @@ pub fn pool(mesh: &Mesh, acc: &[FitSums]) -> Vec<[f32; 4]> {
             let list = fits.get(k).map_or(&[][..], |v| &v[..]);
             let own = list.iter().position(|(b, _, _)| Some(*b) == *bin);
             let most = (0..list.len()).max_by(|&a, &b| list[a].2.total_cmp(&list[b].2));
-            let centre = tri
-                .map(|i| Vec3::from(mesh.positions[i as usize]))
-                .iter()
-                .sum::<Vec3>();
-            own.or(most)
-                .map_or([0.0; 4], |i| near.at(&(*k, i), centre / 3.0, list[i].1))
+            let [a, b, c] = tri.map(|i| Vec3::from(mesh.positions[i as usize]));
+            let (centre, face) = ((a + b + c) / 3.0, (b - a).cross(c - a).normalize_or_zero());
+            own.or(most).map_or([[0.0; 4]; 2], |i| {
+                let key = (*k, i);
+                let n = surface_normal(face, near.normal(&key, centre));
+                [near.at(&key, centre, list[i].1), [n.x, n.y, n.z, 0.0]]
+            })
         })
-        .collect()
+        .map(|[f, n]| (f, n))
+        .unzip()
+}
+
+/// The normal the layer's lobes take on a triangle of normal `face`: its surface's (`smooth`),
+/// where the two are within PLANE_TILT (a proxy made from photos tilts a flat floor's triangles
+/// by a few degrees, and a 3° tilt moves a highlight by a narrow lobe's width); else none (zero:
+/// the layer smooths the G-buffer's normals instead, as on a curved surface).
+fn surface_normal(face: Vec3, smooth: Vec3) -> Vec3 {
+    let c = face.dot(smooth);
+    match c.abs() >= PLANE_TILT.to_radians().cos() {
+        true => smooth * c.signum(),
+        false => Vec3::ZERO,
+    }
 }
 
 /// `cam` at `width` pixels across (same field of view).
@@ -315,12 +332,13 @@ fn fit_views(n: usize, exclude: Option<u32>) -> Vec<usize> {
     (0..k).map(|i| all[i * all.len() / k]).collect()
 }
 
-/// The fit per triangle of the renderer's bake mesh, from its input views (module comment).
+/// The fit per triangle of the renderer's bake mesh, from its input views (module comment),
+/// then each triangle's surface normal: the layer's buffer.
 pub(super) fn fit(r: &mut Renderer) -> Result<Vec<[f32; 4]>> {
     let mesh_tris = r.scene.geom.triangles.len();
     if r.scene.originals.is_empty() {
         // No declared original light: the sums are all zero, and so is the fit.
-        return Ok(vec![[0.0; 4]; mesh_tris]);
+        return Ok(vec![[0.0; 4]; 2 * mesh_tris]);
     }
     let mut acc = vec![FitSums::default(); mesh_tris];
     let lighting = Lighting {
@@ -332,7 +350,8 @@ pub(super) fn fit(r: &mut Renderer) -> Result<Vec<[f32; 4]>> {
     let res = gather(r, &lighting, &mut acc);
     r.display_only = display_only;
     res?;
-    Ok(pool(&r.scene.geom, &acc))
+    let (fits, normals) = pool(&r.scene.geom, &acc);
+    Ok([fits, normals].concat())
 }
 
 /// Renders the sums from the fit's input cameras into the triangles' sums.
@@ -388,7 +407,8 @@ impl Renderer {
         Ok(t0.elapsed())
     }
 
-    /// The view-dependent fit per triangle the last glossy frame used (None before one).
+    /// The view-dependent fit per triangle the last glossy frame used (None before one): the
+    /// fits (w_1..3, t) of the bake mesh's triangles, then their surface normals.
     pub fn glossy_fit(&self) -> Result<Option<Vec<[f32; 4]>>> {
         (self.glossy_fit.as_ref())
             .map(|f| f.1.download_vec())
@@ -454,7 +474,7 @@ mod tests {
                 acc.extend([if i + j == 0 { s } else { none }; 2]);
             }
         }
-        let fit = pool(&m, &acc);
+        let (fit, _) = pool(&m, &acc);
         for f in &fit {
             assert!(
                 (f[1] - 0.3).abs() < 1e-3 && f[0] == 0.0 && f[2] == 0.0,
@@ -462,6 +482,53 @@ mod tests {
             );
             assert!(f[3] >= GLOSSY_REGION_T);
         }
+    }
+
+    /// A floor whose triangles tilt by up to 4° (a proxy from photos) takes the plane's normal
+    /// on every triangle; a column's facets, 30° apart, take none (the layer smooths the
+    /// G-buffer's normals there).
+    #[test]
+    fn a_bumpy_floor_takes_its_planes_normal_and_a_column_none() {
+        let mut m = empty();
+        let mut acc = Vec::new();
+        for i in 0..8 {
+            for j in 0..8 {
+                let o = Vec3::new(i as f32 * 0.1, 0.0, j as f32 * 0.1);
+                let k = m.triangles.len();
+                quad(&mut m, o, Vec3::Z * 0.1, Vec3::X * 0.1);
+                // Lift or lower one corner by up to 7 mm over 10 cm: a tilt of up to 4°.
+                let sign = if (i + j) % 2 == 0 { 1.0 } else { -1.0 };
+                let lift = sign * 0.007 * (((i * 7 + j * 3) % 5) as f32 / 4.0);
+                m.positions[m.triangles[k][2] as usize][1] += lift;
+                acc.extend([sums(0.2, 0.4); 2]);
+            }
+        }
+        let floor = m.triangles.len();
+        for f in 0..12 {
+            let a = |k: i32| (k as f32 * 30f32).to_radians();
+            let p = |k: i32| Vec3::new(2.0 + 0.2 * a(k).cos(), 0.0, 2.0 + 0.2 * a(k).sin());
+            quad(&mut m, p(f), p(f + 1) - p(f), Vec3::Y);
+            acc.extend([sums(0.2, 0.4); 2]);
+        }
+        let (fit, normals) = pool(&m, &acc);
+        let tilt = |n: Vec3| n.dot(Vec3::Y).clamp(-1.0, 1.0).acos().to_degrees();
+        let most = (0..floor)
+            .map(|t| tilt(m.face_normal(t)))
+            .fold(0.0, f32::max);
+        assert!(most > 3.0, "the floor's triangles tilt (by up to {most}°)");
+        for t in 0..floor {
+            let n = Vec3::from_slice(&normals[t][..3]);
+            assert!(
+                fit[t][1] > 0.0 && tilt(n) < 1.0,
+                "{}°: {n}",
+                tilt(m.face_normal(t))
+            );
+        }
+        assert!(
+            normals[floor..].iter().all(|n| *n == [0.0; 4]),
+            "{:?}",
+            &normals[floor..]
+        );
     }
 
     #[test]
@@ -480,7 +547,7 @@ mod tests {
             };
             acc.extend([s; 2]);
         }
-        let fit = pool(&m, &acc);
+        let (fit, _) = pool(&m, &acc);
         assert!((fit[0][1] - 0.3).abs() < 1e-3 && (fit[1][1] - 0.3).abs() < 1e-3);
         for f in &fit[2..] {
             assert_eq!(f[..3], [0.0; 3], "the wall takes none of the mirror's fit");

@@ -17,11 +17,13 @@ pub(super) struct Near {
     lists: HashMap<(Cell, usize), Vec<Neighbour>>,
 }
 
-/// A neighbouring patch's centre, area and fit.
-type Neighbour = (Vec3, f32, [f32; 4]);
+/// A neighbouring patch's centre, area, fit and normal.
+type Neighbour = (Vec3, f32, [f32; 4], Vec3);
 
 /// Width of the smoothing's tent (m).
 const SMOOTH: f32 = 2.0 * CELL;
+/// The least area (m²) of a surface that gives its triangles its normal (`Near::normal`).
+const PLANE_AREA: f32 = 0.25;
 
 impl Near {
     pub(super) fn new(patches: &Patches, fits: &HashMap<Cell, CellFits>) -> Near {
@@ -38,7 +40,7 @@ impl Near {
                         continue;
                     };
                     for ((_, q), f) in qs.iter().zip(fs).filter(|((_, q), _)| same_surface(p, q)) {
-                        near.push((q.centre, q.area, f.1));
+                        near.push((q.centre, q.area, f.1, q.normal));
                     }
                 }
                 lists.insert(((x, y, z, axis), i), near);
@@ -51,7 +53,7 @@ impl Near {
     /// fit, whose t it keeps).
     pub(super) fn at(&self, key: &(Cell, usize), centre: Vec3, own: [f32; 4]) -> [f32; 4] {
         let (mut w, mut sum) = ([0f32; LOBES], 0f32);
-        for (c, area, f) in self.lists.get(key).into_iter().flatten() {
+        for (c, area, f, _) in self.lists.get(key).into_iter().flatten() {
             let k = area * (1.0 - c.distance(centre) / SMOOTH).max(0.0);
             for l in 0..LOBES {
                 w[l] += k * f[l];
@@ -62,6 +64,20 @@ impl Near {
             true => [w[0] / sum, w[1] / sum, w[2] / sum, own[3]],
             false => own,
         }
+    }
+
+    /// The surface's normal at `centre` of a triangle of patch `key`: its patches' normals under
+    /// the same tent and areas; zero where the surface around (its patches in the list) covers
+    /// under PLANE_AREA: a curved surface's facets are narrow planes.
+    pub(super) fn normal(&self, key: &(Cell, usize), centre: Vec3) -> Vec3 {
+        let near = self.lists.get(key).map_or(&[][..], |v| &v[..]);
+        if near.iter().map(|q| q.1).sum::<f32>() < PLANE_AREA {
+            return Vec3::ZERO;
+        }
+        (near.iter())
+            .map(|(c, area, _, n)| area * (1.0 - c.distance(centre) / SMOOTH).max(0.0) * *n)
+            .sum::<Vec3>()
+            .normalize_or_zero()
     }
 }
 
