@@ -26,8 +26,10 @@ void light_frame(Light l, out vec3 c, out vec3 nl, out float area) {
     }
 }
 
-// Whether x (normal n) sees light l's centre: one ray, stopped 5 cm short of the light (a
-// declared light sits on the proxy surface).
+// Whether x (normal n) sees light l's centre: one ray, from SIGHT_LIFT off the surface (n is
+// a smoothed or a plane's normal: a ray 1 mm off a proxy from photos hit the proxy's own bumps
+// and speckled highlights) to 5 cm short of the light (a declared light sits on the proxy).
+const float SIGHT_LIFT = 0.01;
 bool sees_light(vec3 x, vec3 n, Light l) {
     vec3 c, nl;
     float area;
@@ -37,7 +39,7 @@ bool sees_light(vec3 x, vec3 n, Light l) {
     if (dot(d, n) <= 0.0 || dist < 0.06) return false;
     rayQueryEXT rq;
     rayQueryInitializeEXT(rq, tlas, gl_RayFlagsOpaqueEXT | gl_RayFlagsTerminateOnFirstHitEXT, 0xFF,
-                          x + n * 1e-3, 1e-3, d / dist, dist - 0.05);
+                          x + n * SIGHT_LIFT, 1e-3, d / dist, dist - 0.05);
     while (rayQueryProceedEXT(rq)) {}
     return rayQueryGetIntersectionTypeEXT(rq, true) == gl_RayQueryCommittedIntersectionNoneEXT;
 }

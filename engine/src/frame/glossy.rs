@@ -61,14 +61,15 @@ pub(super) fn light_frame(l: &GpuLight) -> (Vec3, Vec3, f32) {
     }
 }
 
-/// Whether x (normal n) sees light l's centre (one ray, stopped 5 cm short of it).
+/// Whether x (normal n) sees light l's centre (one ray from 1 cm off the surface, stopped 5 cm
+/// short of the light: `lobe.glsl`'s `sees_light`).
 pub fn sees_light(mesh: &Mesh, x: Vec3, n: Vec3, l: &GpuLight) -> bool {
     let d = light_frame(l).0 - x;
     let dist = d.length();
     if d.dot(n) <= 0.0 || dist < 0.06 {
         return false;
     }
-    !crate::cpu::occluded(mesh, x + n * 1e-3, d / dist, 1e-3, dist - 0.05)
+    !crate::cpu::occluded(mesh, x + n * 0.01, d / dist, 1e-3, dist - 0.05)
 }
 
 /// The GGX lobe of roughness α that light l (solid angle Ω, unit direction w from x) gives
