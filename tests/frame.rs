@@ -247,6 +247,22 @@ fn frame_passes_match_cpu_references() {
             "plane {k}: most surface pixels have data"
         );
     }
+    // The views that see each pixel's point (the glossy layer's photos' part reads them): the
+    // depth test can flip at edges, as above.
+    let seen: Vec<[u32; 2]> = b.views_seen.download_vec().unwrap();
+    let seen_ref = reproject::views_seen_reference(&inputs);
+    let bad = (seen[..npix].iter().zip(&seen_ref))
+        .filter(|(a, b)| a != b)
+        .count();
+    let any = seen_ref.iter().filter(|s| s[0] != 0).count();
+    assert!(
+        bad * 100 <= 3 * npix,
+        "views seen: {bad} of {npix} pixels differ"
+    );
+    assert!(
+        any * 10 > surf * 8,
+        "views seen: {any} of {surf} surface pixels are seen"
+    );
     // I_5 (max) ≥ I_7 (median) ≥ I_8 (min) in luminance, where defined.
     let lum = |p: [f32; 4]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
     for p in 0..npix {

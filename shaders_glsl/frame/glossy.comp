@@ -27,7 +27,7 @@
 #extension GL_EXT_shader_16bit_storage : require
 #extension GL_GOOGLE_include_directive : require
 
-layout(local_size_x = 64) in;  // SIGHT_GROUP (sight.glsl)
+layout(local_size_x = 64) in;  // SIGHT_GROUP (sight.glsl): one tile of 8×8 pixels
 
 #include "frame.glsl"
 #include "emitters.glsl"
@@ -40,6 +40,8 @@ layout(set = 0, binding = 30) writeonly buffer Glossy { vec4 glossy[]; };
 layout(set = 0, binding = 20, r32ui) readonly uniform uimage2D g_tri;
 // Per triangle: the fits (w_1..3, t), then the surface normals (frame/glossy_fit/).
 layout(set = 0, binding = 33) readonly buffer GlossyFit { vec4 surface_fit[]; };
+// Bit a: whether active view a sees the pixel's point (reproject.comp).
+layout(set = 0, binding = 35) readonly buffer ViewsSeen { uvec2 views_seen[]; };
 
 #include "frame_constants.glsl"
 
@@ -68,17 +70,18 @@ vec3 lamps(vec3 x, vec3 n, vec3 v, vec3 w, uint seen) {
     return s;
 }
 
-// Σ_c w_c·X̄_c: the original lights x (normal n) sees (bits `seen`), through the fitted lobes
-// from each input view that sees x and is not grazing (as the sums pass takes them), averaged
-// under I_1's view weights 1/|eye − c_j|². Zero where fewer than GLOSSY_MIN_VIEWS views see x.
-vec3 photos_part(vec3 x, vec3 n, vec3 w, uint seen) {
+// Σ_c w_c·X̄_c at pixel p: the original lights x (normal n) sees (bits `seen`), through the
+// fitted lobes from each input view that sees x (`views_seen`) and is not grazing (as the sums
+// pass takes them), averaged under I_1's view weights 1/|eye − c_j|². Zero where fewer than
+// GLOSSY_MIN_VIEWS views see x.
+vec3 photos_part(uint p, vec3 x, vec3 n, vec3 w, uint seen) {
     if (seen == 0u) return vec3(0.0);
     vec3 sx = vec3(0.0);
     float sw = 0.0, cnt = 0.0;
+    uvec2 vs = views_seen[p];
     for (uint a = 0u; a < pc.nactive; ++a) {
-        uint j = active_views[a];
-        if (visible_pixel(j, x, pc.view_w, pc.view_h) < 0) continue;
-        vec3 ci = cam_center(cams[j]);
+        if (((vs[a >> 5u] >> (a & 31u)) & 1u) == 0u) continue;
+        vec3 ci = cam_center(cams[active_views[a]]);
         vec3 v = normalize(ci - x);
         if (dot(n, v) < GLOSSY_COS_MIN) continue;
         vec3 e = pc.eye.xyz - ci;
@@ -90,38 +93,44 @@ vec3 photos_part(vec3 x, vec3 n, vec3 w, uint seen) {
     return cnt < float(GLOSSY_MIN_VIEWS) ? vec3(0.0) : sx / sw;
 }
 
-// A pixel's surface (x, smoothed normal n), I_1 and its surface's lobe strengths w; false
-// (after writing the layer's "no fit" values) where it has no surface, no photo or no fit.
-bool fitted_pixel(uint p, uint npix, out vec3 x, out vec3 n, out vec3 i1, out vec3 w) {
+// A pixel's surface (x, smoothed normal n), I_1 (zero where it has no surface) and its
+// surface's lobe strengths w; false where it has no surface, no photo or no fit.
+bool fitted_pixel(uint p, uvec2 xy, out vec3 x, out vec3 n, out vec3 i1, out vec3 w) {
     x = vec3(0.0);
     n = vec3(0.0, 0.0, 1.0);
     w = vec3(0.0);
-    glossy[p] = vec4(0.0);
-    glossy[npix + p] = vec4(0.0);
     i1 = vec3(comp[p].rgb);
     float depth;
-    if (!surface(p, pc.width, pc.eye.xyz, x, n, depth) || all(equal(i1, vec3(0.0)))) return false;
-    glossy[p] = vec4(i1, 0.0);
-    ivec2 xy = ivec2(p % pc.width, p / pc.width);
-    uint tri = imageLoad(g_tri, xy).x;
+    if (!surface(p, pc.width, pc.eye.xyz, x, n, depth)) i1 = vec3(0.0);
+    if (all(equal(i1, vec3(0.0)))) return false;
+    uint tri = imageLoad(g_tri, ivec2(xy)).x;
     w = tri > 0u ? surface_fit[tri - 1u].xyz : vec3(0.0);
     if (w == vec3(0.0)) return false;
     // The surface's normal where the fit has one (a flat surface), facing the G-buffer's.
     vec3 ns = surface_fit[uint(surface_fit.length()) / 2u + tri - 1u].xyz;
-    n = ns != vec3(0.0) ? (dot(ns, n) < 0.0 ? -ns : ns) : smooth_normal(xy, n, depth);
+    n = ns != vec3(0.0) ? (dot(ns, n) < 0.0 ? -ns : ns) : smooth_normal(ivec2(xy), n, depth);
     return true;
 }
 
 void main() {
-    uint p = gl_GlobalInvocationID.x;
+    uvec2 xy = tile_pixel();
+    uint p = xy.y * pc.width + xy.x;
     uint npix = pc.width * pc.height;
     vec3 x, n, i1, w;
-    bool on = p < npix && fitted_pixel(p, npix, x, n, i1, w);
+    bool inside = xy.x < pc.width && xy.y < pc.height;
+    bool on = inside && fitted_pixel(p, xy, x, n, i1, w);
     // Every invocation reaches the shared rays (they hold a workgroup barrier).
     uint seen = shared_sight(on, x, n);
-    if (!on) return;
+    if (!on) {
+        // No fit: today's image (D = I_1, S = 0); holes all zero.
+        if (inside) {
+            glossy[p] = vec4(i1, 0.0);
+            glossy[npix + p] = vec4(0.0);
+        }
+        return;
+    }
     uint no = min(pc.norig, MAX_ORIG);
-    vec3 xm = photos_part(x, n, w, seen & ((1u << no) - 1u));
+    vec3 xm = photos_part(p, x, n, w, seen & ((1u << no) - 1u));
     float cap = min(1.0, GLOSSY_SHARE * luminance(i1) / max(luminance(xm), 1e-8));
     w *= cap;
     vec3 i8 = vec3(comp[7u * npix + p].rgb);

@@ -25,6 +25,9 @@ layout(set = 0, binding = 6) readonly buffer Active { uint active_views[]; };
 layout(set = 0, binding = 7) uniform sampler2DArray tex_img;
 layout(set = 0, binding = 8) uniform sampler2DArray tex_msrc;
 layout(set = 0, binding = 13) writeonly buffer Comp { f16vec4 comp[]; };
+// Bit a: whether active view a sees the pixel's point (the glossy layer's photos' part reads
+// them rather than testing every view's depth map again).
+layout(set = 0, binding = 35) writeonly buffer ViewsSeen { uvec2 views_seen[]; };
 
 #include "frame_constants.glsl"
 
@@ -35,6 +38,7 @@ void main() {
     uint npix = pc.width * pc.height;
     if (p >= npix) return;
     for (uint k = 0u; k < 16u; ++k) put(k * npix + p, vec4(0.0));
+    views_seen[p] = uvec2(0u);
     vec3 x, n;
     float depth;
     vec3 eye = pc.eye.xyz;
@@ -46,9 +50,11 @@ void main() {
     float lum[MAX_ACTIVE];
     uint vid[MAX_ACTIVE];
     uint cnt = 0u;
+    uvec2 seen = uvec2(0u);
     for (uint a = 0u; a < pc.nactive; ++a) {
         uint j = active_views[a];
         if (visible_pixel(j, x, pc.view_w, pc.view_h) < 0) continue;
+        seen[a >> 5u] |= 1u << (a & 31u);
         vec2 px = project_px(j, x);
         vec3 col = sample_map(tex_img, px, j);
         vec3 mir = sample_map(tex_msrc, px, j);
@@ -82,6 +88,7 @@ void main() {
             put((8u + k) * npix + p, vec4(sm[k] / sw[k], 1.0));
         }
     }
+    views_seen[p] = seen;
     if (cnt == 0u) return;
     uint pick[4] = uint[4](cnt - 1u, cnt >= 2u ? cnt - 2u : 0u, (cnt - 1u) / 2u, 0u);
     for (uint k = 0u; k < 4u; ++k) {

@@ -8,12 +8,18 @@ use crate::gpu::{vk, Buffer, Gpu, MemoryLocation};
 use crate::net::{Network, Storage, Tensor, INPUT_CHANNELS};
 use crate::raster::Gbuffer;
 
+// The views seen per pixel are a uvec2 of bits (reproject.comp).
+const _: () = assert!(MAX_ACTIVE <= 64);
+
 /// Per-resolution buffers of a frame.
 pub struct FrameBuffers {
     pub width: u32,
     pub height: u32,
     pub gbuf: Gbuffer,
     pub comp: Buffer,
+    /// Per pixel, bit a: whether active view a sees its point (written by reproject, read by
+    /// the glossy layer).
+    pub views_seen: Buffer,
     pub irr: Buffer,
     pub mirror: Buffer,
     /// The view-dependent layer: (D, s), (S, lobe + 1) per pixel ([`glossy`]).
@@ -62,6 +68,7 @@ impl FrameBuffers {
             height,
             gbuf: Gbuffer::new(gpu, width, height)?,
             comp: buf("frame composites", reproject::PLANES as u64 * n * 8)?,
+            views_seen: buf("frame views seen", n * 8)?,
             irr: buf("frame irradiance", irradiance::PLANES as u64 * n * 16)?,
             mirror: buf("frame target mirror", n * 16)?,
             glossy: buf("frame glossy layer", glossy::PLANES as u64 * n * 16)?,

@@ -347,7 +347,7 @@ pub fn reference(
         .collect();
     let pts: Vec<_> = fitted.iter().map(|f| f.map(|(x, n, _)| (x, n))).collect();
     let lights = sight_lights(r, MAX_ORIG);
-    let seen = shared_sight(mesh, &lights, &pts);
+    let seen = shared_sight(mesh, &lights, &pts, r.width as usize);
     let no = r.originals.len().min(MAX_ORIG);
     for (p, f) in fitted.iter().enumerate() {
         let Some((x, n, mut w)) = *f else {

@@ -225,6 +225,7 @@ impl Renderer {
         let fc = self.frame_constants(cam, lighting, mode, exposure);
         let push = bytes_of(&fc);
         let threads = (cam.width * cam.height, 1, 1);
+        let tiles = (super::sight::tiles(cam.width, cam.height), 1, 1);
         // The passes that only feed the network (see `display_only`).
         let inputs = mode.needs_network() || !self.display_only;
         let gpu = self.gpu.clone();
@@ -243,11 +244,11 @@ impl Renderer {
             }
             if self.runs_glossy(mode) {
                 // The sums only feed the fit per surface (frame/glossy_fit/).
-                let (name, pass) = match self.fitting {
-                    true => ("glossy sums", &self.glossy_sums),
-                    false => ("glossy layer", &self.glossy),
-                };
-                g.dispatch(name, pass, push, threads)?;
+                match self.fitting {
+                    true => g.dispatch("glossy sums", &self.glossy_sums, push, threads)?,
+                    // Its workgroups are tiles (frame/sight.rs).
+                    false => g.dispatch_groups("glossy layer", &self.glossy, push, tiles)?,
+                }
             }
             if inputs {
                 g.dispatch("features", &self.features, push, threads)?;
@@ -478,6 +479,7 @@ impl Renderer {
             .set("Keep", Bind::Buffer(&b.keep))
             .set("tlas", Bind::Accel(s.mesh.tlas.raw))
             .set("Comp", Bind::Buffer(&b.comp))
+            .set("ViewsSeen", Bind::Buffer(&b.views_seen))
             .set("Irr", Bind::Buffer(&b.irr))
             .set("Mirror", Bind::Buffer(&b.mirror))
             .set("Glossy", Bind::Buffer(&b.glossy))

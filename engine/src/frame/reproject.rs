@@ -22,6 +22,26 @@ pub(crate) fn project_px(d: &ViewData, j: usize, p: Vec3) -> glam::Vec2 {
     glam::Vec2::new(c.fx * q.x / q.z + c.cx, c.fy * q.y / q.z + c.cy)
 }
 
+/// CPU reference of the pass's views-seen bits: per pixel, bit a (of two words) where active
+/// view a sees its surface point, as the glossy layer reads them.
+pub fn views_seen_reference(r: &RefInputs) -> Vec<[u32; 2]> {
+    let npix = (r.width * r.height) as usize;
+    (0..npix)
+        .map(|p| {
+            let Some((x, _)) = r.surface(p) else {
+                return [0; 2];
+            };
+            let mut bits = [0u32; 2];
+            for (a, &j) in r.active.iter().enumerate() {
+                if r.data.visible_pixel(j as usize, x).is_some() {
+                    bits[a / 32] |= 1 << (a % 32);
+                }
+            }
+            bits
+        })
+        .collect()
+}
+
 /// CPU reference: 16 planes of `width × height` vec4 (w = 1 where defined).
 pub fn reference(r: &RefInputs) -> Vec<[f32; 4]> {
     let npix = (r.width * r.height) as usize;
