@@ -2,12 +2,14 @@
 // A light's visibility changes little from one pixel to the next on one surface, and a ray query
 // costs a whole SIMD vector of pixels on a CPU device (and a warp on a GPU) whether one lane
 // traces or all: so a workgroup is a tile of SIGHT_TILE² pixels whose rows are vectors on
-// llvmpipe, only every GLOSSY_SIGHT_ROWS-th row traces, and the lights are dealt out along it,
-// pixel (tx, ty) tracing slot r·m + tx mod m in round r (m = min(slots, GLOSSY_SIGHT_SPAN)).
-// A pixel takes a slot's answer from the nearest pixels that traced it (the columns with that
-// slot on either side, in its own row where it traces, else in the tracing rows above and
-// below) that lie on its surface (within GLOSSY_SIGHT_DIST, normals within ~25°); where they
-// disagree (a shadow's edge) or none may answer, it traces its own ray.
+// llvmpipe, only every GLOSSY_SIGHT_ROWS-th row traces (`traces`), and the lights are dealt out
+// along it, pixel (tx, ty) tracing slot r·m + c in round r, c = tx mod m mirrored every other
+// tracing row (`slot_column`; m = min(slots, GLOSSY_SIGHT_SPAN)). A pixel takes a slot's answer
+// from the nearest pixels that traced it (the columns with that slot on either side, in its
+// own row and the tracing rows before and after where it traces, else in the tracing rows
+// above and below) that lie on its plane (within GLOSSY_SIGHT_DIST of it and GLOSSY_SIGHT_REACH
+// away, normals within ~25°) where all of them agree; where they disagree (a shadow's edge) or
+// none may answer, it traces its own ray.
 // Slots: the original lights (at most MAX_ORIG), then the lit added lights in order, at most
 // SIGHT_MAX in all. The includer includes lobe.glsl, dispatches one workgroup of SIGHT_GROUP
 // invocations per tile (`tile_pixel`) and reaches `shared_sight` in uniform control flow.
@@ -89,15 +91,15 @@ int answer(ivec2 t, uint r, vec3 x, vec3 n) {
     uint j = uint(t.y) * SIGHT_TILE + uint(t.x);
     uint b = (sight_bits[j] >> (2u * r)) & 3u;
     vec3 d = sight_x[j] - x;
-    bool near = abs(dot(d, n)) <= GLOSSY_SIGHT_DIST && dot(d, d) <= GLOSSY_SIGHT_REACH * GLOSSY_SIGHT_REACH
-        && dot(sight_n[j], n) >= 0.9;
+    bool near = abs(dot(d, n)) <= GLOSSY_SIGHT_DIST
+        && dot(d, d) <= GLOSSY_SIGHT_REACH * GLOSSY_SIGHT_REACH && dot(sight_n[j], n) >= 0.9;
     return (b & 1u) != 0u && near ? int(b >> 1u) : -1;
 }
 
 // Slot k's answer at this pixel (tx, ty in the tile): 1 seen, 0 not. Its own where it traced
-// k; else that of the pixels that traced k nearby (in each tracing row within
-// GLOSSY_SIGHT_ROWS, the columns with k on either side) where all that may answer agree; −1
-// (a ray of its own) where they disagree (a shadow's edge) or none may answer.
+// k; else that of the pixels that traced k around it (the tracing rows around, the columns
+// with k on either side) where all that may answer agree; −1 (a ray of its own) where they
+// disagree (a shadow's edge) or none may answer.
 int slot_answer(uint k, uint m, uvec2 t, vec3 x, vec3 n, Light l) {
     if (!faces_light(x, n, l)) return 0;
     uint r = k / m, c = k % m;

@@ -1,14 +1,15 @@
 //! Shadow rays shared between neighbouring pixels: the CPU twin of `shaders_glsl/frame/sight.glsl`
 //! (the glossy layer's). The layer's workgroups are tiles of [`SIGHT_TILE`]² pixels; in each,
-//! only every GLOSSY_SIGHT_ROWS-th row traces, pixel (tx, ty) slot r·m + tx mod m in round r
-//! (m = min(slots, GLOSSY_SIGHT_SPAN)). A pixel takes a slot's answer from the nearest pixels
-//! that traced it — the two columns around it with that slot, in its own row where it traces,
-//! else in the tracing rows above and below — that lie on its surface (within
-//! GLOSSY_SIGHT_DIST, normals within ~25°); where they disagree (a shadow's edge) or none may
-//! answer it traces its own ray, so a shadow's edge stays where the rays put it. A ray query
-//! costs a whole SIMD vector on a CPU device (a warp on a GPU) however few lanes trace: a tile's
-//! row is one vector on llvmpipe, so rows that do not trace cost no ray unless an edge crosses
-//! them.
+//! only every GLOSSY_SIGHT_ROWS-th row traces, pixel (tx, ty) slot r·m + c in round r, c =
+//! tx mod m mirrored every other tracing row (m = min(slots, GLOSSY_SIGHT_SPAN)). A pixel takes
+//! a slot's answer from the nearest pixels that traced it — the columns with that slot on
+//! either side, in its own row and the tracing rows before and after where it traces, else in
+//! the tracing rows above and below — that lie on its plane (within GLOSSY_SIGHT_DIST of it and
+//! GLOSSY_SIGHT_REACH away, normals within ~25°), where all of them agree; where they disagree
+//! (a shadow's edge) or none may answer it traces its own ray, so a shadow's edge stays where
+//! the rays put it. A ray query costs a whole SIMD vector on a CPU device (a warp on a GPU)
+//! however few lanes trace: a tile's row is one vector on llvmpipe, so rows that do not trace
+//! cost no ray unless an edge crosses them.
 
 use glam::Vec3;
 
