@@ -173,6 +173,24 @@ fn planes(buf: &relit_engine::gpu::Buffer, n: usize) -> Vec<[f32; 4]> {
     v
 }
 
+/// The layer's planes `got` against `want`: the choice of lobe can flip where two explain the
+/// views almost equally; bilinear weights on lavapipe are 8-bit fixed point: 1% of the plane's
+/// scale on ≥ 97% of the pixels.
+fn assert_planes_match(got: &[[f32; 4]], want: &[[f32; 4]], npix: usize, what: &str) {
+    for k in 0..glossy::PLANES {
+        let s = k * npix..(k + 1) * npix;
+        let scale = (want[s.clone()].iter().flat_map(|p| p[..3].iter()))
+            .fold(1e-6f32, |m, v| m.max(v.abs()));
+        let bad = (got[s.clone()].iter().zip(&want[s]))
+            .filter(|(a, b)| (0..3).any(|c| (a[c] - b[c]).abs() > 0.01 * scale))
+            .count();
+        assert!(
+            bad * 100 <= 3 * npix,
+            "{what}: glossy plane {k}: {bad} of {npix} pixels differ"
+        );
+    }
+}
+
 #[test]
 fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
     let gpu = common::gpu();
@@ -183,9 +201,15 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
         alpha_dim: 0.5,
         ..Default::default()
     };
+    let npix = (t.novel.width * t.novel.height) as usize;
+    // Without the sight cache every slot traces, shared between neighbours (frame/sight.glsl).
+    r.use_sight_cache = false;
     r.render(&t.novel, &lighting, Mode::Glossy, 1.0, None)
         .unwrap();
-    let npix = (t.novel.width * t.novel.height) as usize;
+    let traced = planes(&r.buffers_ref().unwrap().glossy, glossy::PLANES * npix);
+    r.use_sight_cache = true;
+    r.render(&t.novel, &lighting, Mode::Glossy, 1.0, None)
+        .unwrap();
     let b = r.buffers_ref().unwrap();
     let g = b.gbuf.download().unwrap();
     let comp = b.composites().unwrap();
@@ -236,25 +260,27 @@ fn glossy_layer_matches_cpu_reference_and_recovers_the_photos_fit() {
         .glossy_fit()
         .unwrap()
         .expect("a glossy frame made the fit");
+    let sight = r
+        .sight_cache_data(&lighting)
+        .unwrap()
+        .expect("a glossy frame made the cache");
     let fit = glossy::SurfaceFit {
         per_tri: &per_tri,
         gtri: &g.tri,
+        sight: Some(glossy::CachedSight {
+            layout: sight.layout,
+            vis: &sight.vis,
+            cols: &sight.cols,
+        }),
     };
     let want = glossy::reference(&inputs, &t.mesh, &comp, &irr, &fit);
-    // The choice of lobe can flip where two explain the views almost equally; bilinear weights
-    // on lavapipe are 8-bit fixed point: 1% of the plane's scale on ≥ 97% of the pixels.
-    for k in 0..glossy::PLANES {
-        let s = k * npix..(k + 1) * npix;
-        let scale = (want[s.clone()].iter().flat_map(|p| p[..3].iter()))
-            .fold(1e-6f32, |m, v| m.max(v.abs()));
-        let bad = (gl[s.clone()].iter().zip(&want[s]))
-            .filter(|(a, b)| (0..3).any(|c| (a[c] - b[c]).abs() > 0.01 * scale))
-            .count();
-        assert!(
-            bad * 100 <= 3 * npix,
-            "glossy plane {k}: {bad} of {npix} pixels differ"
-        );
-    }
+    assert_planes_match(&gl, &want, npix, "sight cache");
+    let fit = glossy::SurfaceFit { sight: None, ..fit };
+    let want_traced = glossy::reference(&inputs, &t.mesh, &comp, &irr, &fit);
+    assert_planes_match(&traced, &want_traced, npix, "rays");
+    // The cache stands in for the rays: the penumbrae's middle where the rays to the lights'
+    // centres put the shadows' edges.
+    assert_planes_match(&gl, &traced, npix, "cache against rays");
     // The floor's fit: most floor pixels fitted, led by the photos' lobe (GLOSSY_LOBE_2: the
     // second, plane value 2), D between the darkest photo and I_1.
     let floor: Vec<usize> = (0..npix)
@@ -543,5 +569,60 @@ fn a_lamps_highlight_sits_where_the_mirror_direction_puts_it_and_moves_with_it()
         moved.distance(predicted) <= 2.0,
         "the highlight moves with the lamp: {moved} (mirror point: {predicted})"
     );
+    common::assert_no_validation_errors(&gpu);
+}
+
+/// The sight cache (frame/sight_cache.rs) against its CPU reference: each point's count of the
+/// rays to its lights' areas equal at ≥ 99 % of the point-light pairs (a ray grazing an edge may
+/// go either way in two tracers), and on the floor around the table it holds the lamp's full
+/// shadow, the fully lit floor and the panel's penumbrae between.
+#[test]
+fn sight_cache_matches_cpu_reference() {
+    use relit_engine::constants::SIGHT_CACHE_SAMPLES;
+    use relit_engine::frame::sight_cache::{self, WORDS};
+    let gpu = common::gpu();
+    let t = room();
+    let mut r = renderer(&gpu, &t);
+    let lighting = Lighting {
+        intensities: vec![1.0],
+        alpha_dim: 0.5,
+        ..Default::default()
+    };
+    r.rebuild_sight_cache(&lighting).unwrap();
+    let got = r.sight_cache_data(&lighting).unwrap().unwrap();
+    // The panel (original) first, then the lamp; both columns read, the lamp's marked small
+    // (its hard shadows' edges trace).
+    assert_eq!(got.lights.len(), 2);
+    assert_eq!(&got.cols[..2], &[0, 1 | sight_cache::SHARP]);
+    let want = sight_cache::reference(&r.scene.geom, got.layout, &got.lights);
+    let count = |v: &[u32], p: usize, c: usize| v[p * WORDS + c / 4] >> (8 * (c % 4)) & 255;
+    let points = got.layout.points();
+    assert!(
+        points > r.scene.geom.positions.len(),
+        "large triangles take grids"
+    );
+    let mut differ = 0;
+    for p in 0..points {
+        for c in 0..2 {
+            differ += (count(&got.vis, p, c) != count(&want, p, c)) as usize;
+        }
+    }
+    assert!(
+        differ * 100 <= 2 * points,
+        "{differ} of {} counts differ",
+        2 * points
+    );
+    let floor: Vec<usize> = (0..points)
+        .filter(|&p| got.layout.pos[p][1].abs() < 1e-4 && got.layout.pos[p][0].abs() < 1.2)
+        .collect();
+    for (c, what) in [(0, "panel"), (1, "lamp")] {
+        let n = |f: &dyn Fn(u32) -> bool| floor.iter().filter(|&&p| f(count(&want, p, c))).count();
+        let (dark, lit) = (n(&|k| k == 0), n(&|k| k == SIGHT_CACHE_SAMPLES));
+        let part = n(&|k| k > 0 && k < SIGHT_CACHE_SAMPLES);
+        assert!(
+            dark > 0 && lit > 0 && part > 0,
+            "{what}: floor points dark {dark}, lit {lit}, partly {part}"
+        );
+    }
     common::assert_no_validation_errors(&gpu);
 }

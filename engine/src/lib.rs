@@ -37,6 +37,7 @@ pub fn push_layouts() -> Vec<gpu::PushLayout> {
         crate::trace::PUSH_LAYOUT,
         crate::frame::constants::PUSH_LAYOUT,
         crate::frame::view_cull::PUSH_LAYOUT,
+        crate::frame::sight_cache::PUSH_LAYOUT,
         crate::bake::surface_cache::PUSH_LAYOUT,
         crate::bake::source_irradiance::PUSH_LAYOUT,
         crate::bake::radiance_mesh::PUSH_LAYOUT,

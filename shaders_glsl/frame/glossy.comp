@@ -15,8 +15,9 @@
 // is taken to come from the original lights in the shares their diffuse light does), plus
 // each lit lamp x sees through the lobes seen from the novel view (the normal smoothed,
 // lobe.glsl). Under the original lighting the layer is I_1 where there is no fit: ratio's.
-// The shadow rays to the original lights and the lit lamps are shared between neighbouring
-// pixels of one surface (sight.glsl): on lavapipe they were three quarters of the layer.
+// Which original lights and lit lamps x sees comes from the sight cache where the light is
+// still (sight_cache.glsl), else from shadow rays shared between neighbouring pixels of one
+// surface (sight.glsl): on lavapipe the rays were three quarters of the layer.
 // Output: plane 0 (D, Σ w_c), plane 1 (S, the leading lobe + 1; 0: no fit). Holes (no view)
 // are all zero.
 #extension GL_EXT_ray_query : require
@@ -93,17 +94,18 @@ vec3 photos_part(uint p, vec3 x, vec3 n, vec3 w, uint seen) {
     return cnt < float(GLOSSY_MIN_VIEWS) ? vec3(0.0) : sx / sw;
 }
 
-// A pixel's surface (x, smoothed normal n), I_1 (zero where it has no surface) and its
-// surface's lobe strengths w; false where it has no surface, no photo or no fit.
-bool fitted_pixel(uint p, uvec2 xy, out vec3 x, out vec3 n, out vec3 i1, out vec3 w) {
+// A pixel's surface (x, smoothed normal n, triangle id + 1 tri), I_1 (zero where it has no
+// surface) and its surface's lobe strengths w; false where it has no surface, no photo or no fit.
+bool fitted_pixel(uint p, uvec2 xy, out vec3 x, out vec3 n, out vec3 i1, out vec3 w, out uint tri) {
     x = vec3(0.0);
+    tri = 0u;
     n = vec3(0.0, 0.0, 1.0);
     w = vec3(0.0);
     i1 = vec3(comp[p].rgb);
     float depth;
     if (!surface(p, pc.width, pc.eye.xyz, x, n, depth)) i1 = vec3(0.0);
     if (all(equal(i1, vec3(0.0)))) return false;
-    uint tri = imageLoad(g_tri, ivec2(xy)).x;
+    tri = imageLoad(g_tri, ivec2(xy)).x;
     w = tri > 0u ? surface_fit[tri - 1u].xyz : vec3(0.0);
     if (w == vec3(0.0)) return false;
     // The surface's normal where the fit has one (a flat surface), facing the G-buffer's.
@@ -117,10 +119,11 @@ void main() {
     uint p = xy.y * pc.width + xy.x;
     uint npix = pc.width * pc.height;
     vec3 x, n, i1, w;
+    uint tri = 0u;
     bool inside = xy.x < pc.width && xy.y < pc.height;
-    bool on = inside && fitted_pixel(p, xy, x, n, i1, w);
+    bool on = inside && fitted_pixel(p, xy, x, n, i1, w, tri);
     // Every invocation reaches the shared rays (they hold a workgroup barrier).
-    uint seen = shared_sight(on, x, n);
+    uint seen = shared_sight(on, x, n, tri - 1u);
     if (!on) {
         // No fit: today's image (D = I_1, S = 0); holes all zero.
         if (inside) {

@@ -16,8 +16,7 @@ struct LiveLight {
     uint pad;
 };
 
-layout(set = 0, binding = 21, scalar) readonly buffer LiveVerts { vec3 live_verts[]; };
-layout(set = 0, binding = 22) readonly buffer LiveIndices { uint live_indices[]; };
+#include "frame_mesh.glsl"
 layout(set = 0, binding = 23) readonly buffer LiveCaches { vec4 live_cache[]; };
 layout(set = 0, binding = 24) readonly buffer LiveCorners { uint live_corners[]; };
 layout(set = 0, binding = 25, scalar) readonly buffer Lives { LiveLight lives[]; };

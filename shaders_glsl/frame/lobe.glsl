@@ -29,7 +29,6 @@ void light_frame(Light l, out vec3 c, out vec3 nl, out float area) {
 // Whether x (normal n) sees light l's centre: one ray, from SIGHT_LIFT off the surface (n is
 // a smoothed or a plane's normal: a ray 1 mm off a proxy from photos hit the proxy's own bumps
 // and speckled highlights) to 5 cm short of the light (a declared light sits on the proxy).
-const float SIGHT_LIFT = 0.01;
 bool sees_light(vec3 x, vec3 n, Light l) {
     vec3 c, nl;
     float area;

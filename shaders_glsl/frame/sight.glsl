@@ -11,7 +11,9 @@
 // away, normals within ~25°) where all of them agree; where they disagree (a shadow's edge) or
 // none may answer, it traces its own ray.
 // Slots: the original lights (at most MAX_ORIG), then the lit added lights in order, at most
-// SIGHT_MAX in all. The includer includes lobe.glsl, dispatches one workgroup of SIGHT_GROUP
+// SIGHT_MAX in all. A slot whose light is still has a column in the sight cache
+// (sight_cache.glsl) and is read there; only the others (lights being moved) are dealt out as
+// above, in their order, as if they were all the slots. The includer includes lobe.glsl, dispatches one workgroup of SIGHT_GROUP
 // invocations per tile (`tile_pixel`) and reaches `shared_sight` in uniform control flow.
 #ifndef RELIT_SIGHT_GLSL
 #define RELIT_SIGHT_GLSL
@@ -53,6 +55,8 @@ Light sight_light(uint k, uint no) {
     }
     return emitters[0];
 }
+
+#include "sight_cache.glsl"
 
 // This invocation's pixel (x, y): tile gl_WorkGroupID.x of the image's rows of tiles.
 uvec2 tile_pixel() {
@@ -126,32 +130,49 @@ int slot_answer(uint k, uint m, uvec2 t, vec3 x, vec3 n, Light l) {
     return said == 1u ? 1 : (said == 2u ? 0 : -1);
 }
 
-// Bit k: whether this pixel (`on`: it needs the answers) at x, normal n, sees slot k's light.
-// The rays of its own go last, one per pass of a loop whose lanes each take their next slot:
-// a vector then pays for its pixels' largest count of such rays, not for every slot that one
-// of its pixels needs.
-uint shared_sight(bool on, vec3 x, vec3 n) {
+// The j-th slot (of nk) that traces: not in `cached`.
+uint traced_slot(uint j, uint cached, uint nk) {
+    for (uint k = 0u; k < nk; ++k) {
+        if (((cached >> k) & 1u) != 0u) continue;
+        if (j == 0u) return k;
+        --j;
+    }
+    return nk;
+}
+
+// Bit k: whether this pixel (`on`: it needs the answers) at x, normal n, on triangle tri sees
+// slot k's light. Slots with a column in the sight cache (sight_cache.glsl: still lights) read
+// it; the others are dealt out as the header says, the j-th of them in place j. The rays of
+// its own go last, one per pass of a loop whose lanes each take their next slot: a vector then
+// pays for its pixels' largest count of such rays, not for every slot that one of its pixels
+// needs.
+uint shared_sight(bool on, vec3 x, vec3 n, uint tri) {
     uint li = gl_LocalInvocationIndex;
     uvec2 t = uvec2(li % SIGHT_TILE, li / SIGHT_TILE);
     uint no;
     uint nk = sight_slots(no);
-    uint m = max(min(nk, GLOSSY_SIGHT_SPAN), 1u);
+    uint cached = sight_cached(nk);
+    uint nt = nk - uint(bitCount(cached));
+    uint m = max(min(nt, GLOSSY_SIGHT_SPAN), 1u);
     uint mine = 0u;
-    for (uint r = 0u; r * m < nk; ++r) {
+    for (uint r = 0u; r * m < nt; ++r) {
         if (!on || !traces(t.y)) continue;
-        uint k = r * m + slot_column(t.x % m, m, int(t.y));
-        if (k >= nk) continue;
-        Light l = sight_light(k, no);
+        uint j = r * m + slot_column(t.x % m, m, int(t.y));
+        if (j >= nt) continue;
+        Light l = sight_light(traced_slot(j, cached, nk), no);
         if (faces_light(x, n, l)) mine |= (sees_light(x, n, l) ? 3u : 1u) << (2u * r);
     }
     sight_x[li] = x;
     sight_n[li] = n;
     sight_bits[li] = mine;
     barrier();
-    uint seen = 0u, own = 0u;
-    if (!on) return seen;
+    if (!on) return 0u;
+    uint own;
+    uint seen = cache_sight(cached, tri, x, n, no, own);
+    uint j = 0u;
     for (uint k = 0u; k < nk; ++k) {
-        int a = slot_answer(k, m, t, x, n, sight_light(k, no));
+        if (((cached >> k) & 1u) != 0u) continue;
+        int a = slot_answer(j++, m, t, x, n, sight_light(k, no));
         if (a == 1) seen |= 1u << k;
         if (a < 0) own |= 1u << k;
     }

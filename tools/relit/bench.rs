@@ -883,6 +883,12 @@ fn frame_bench(
             "glossy fit per surface (once per scene, before its first glossy frame): {:.2} s",
             fit.as_secs_f64()
         );
+        let sight = r.rebuild_sight_cache(&light)?;
+        let (points, lights) = r.sight_cache_size();
+        println!(
+            "sight cache ({points} points x {lights} lights, once per scene and set of still lights): {:.2} s",
+            sight.as_secs_f64()
+        );
     }
     r.render(&cams[1 % cams.len()], &light, mode, 1.0, None)?;
     let plain = r.last_barriers();

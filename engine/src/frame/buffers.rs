@@ -36,6 +36,8 @@ pub struct FrameBuffers {
     pub intensity: Buffer,
     /// The original lights' factors (`Keep`, [`Lighting::keep_buffer`]).
     pub keep: Buffer,
+    /// Each glossy slot's column in the sight cache (`SightCols`, [`super::sight_cache`]).
+    pub sight_cols: Buffer,
     pub input: Tensor,
     pub hdr: Buffer,
     pub ldr: Buffer,
@@ -87,6 +89,10 @@ impl FrameBuffers {
             keep: buf(
                 "frame original factors",
                 scene.originals.len().max(1) as u64 * 16,
+            )?,
+            sight_cols: buf(
+                "frame sight columns",
+                super::sight_cache::COLUMNS as u64 * 4,
             )?,
             input: Tensor::new(gpu, "frame input", INPUT_CHANNELS, height, width, storage)?,
             hdr: buf("frame hdr", n * 16)?,

@@ -15,11 +15,12 @@
 use glam::Vec3;
 
 use super::sight::{shared_sight, sight_lights, SIGHT_MAX};
+use super::sight_cache::SHARP;
 use super::RefInputs;
 use crate::bake::GpuLight;
 use crate::constants::{
     GLOSSY_COS_MIN, GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3, GLOSSY_MIN_VIEWS, GLOSSY_SHARE,
-    GLOSSY_S_MAX,
+    GLOSSY_S_MAX, SIGHT_CACHE_SAMPLES,
 };
 use crate::gpu::shaders;
 use crate::scene::Mesh;
@@ -31,7 +32,7 @@ pub const PLANES: usize = 2;
 /// Regressors: the original lights through the three lobe widths.
 const LOBES: usize = 3;
 /// Original lights that take part in the fit (one shadow ray each per pixel).
-const MAX_ORIG: usize = 8;
+pub(super) const MAX_ORIG: usize = 8;
 
 fn lobe_width(c: usize) -> f32 {
     [GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3][c]
@@ -46,7 +47,7 @@ pub fn lobe_s_max(c: usize) -> f32 {
 }
 
 /// Centre, unit emitting normal and area of a light.
-pub(super) fn light_frame(l: &GpuLight) -> (Vec3, Vec3, f32) {
+pub(crate) fn light_frame(l: &GpuLight) -> (Vec3, Vec3, f32) {
     let v = |a: [f32; 4]| Vec3::from_slice(&a[..3]);
     if l.p0[3] < 0.5 {
         let cr = v(l.p1).cross(v(l.p2));
@@ -69,7 +70,13 @@ pub fn sees_light(mesh: &Mesh, x: Vec3, n: Vec3, l: &GpuLight) -> bool {
     if d.dot(n) <= 0.0 || dist < 0.06 {
         return false;
     }
-    !crate::cpu::occluded(mesh, x + n * 0.01, d / dist, 1e-3, dist - 0.05)
+    !crate::cpu::occluded(
+        mesh,
+        x + n * crate::constants::SIGHT_LIFT,
+        d / dist,
+        1e-3,
+        dist - 0.05,
+    )
 }
 
 /// The GGX lobe of roughness α that light l (solid angle Ω, unit direction w from x) gives
@@ -307,6 +314,55 @@ fn kept(r: &RefInputs, irr: &[[f32; 4]], p: usize) -> Vec3 {
 pub struct SurfaceFit<'a> {
     pub per_tri: &'a [[f32; 4]],
     pub gtri: &'a [u32],
+    /// The sight cache the frame read (None: every slot traces).
+    pub sight: Option<CachedSight<'a>>,
+}
+
+/// The sight cache as a frame read it ([`super::sight_cache`]): its layout, its points' counts
+/// and each slot's column ([`super::sight_cache::NO_COLUMN`]: none).
+pub struct CachedSight<'a> {
+    pub layout: &'a super::sight_cache::SightLayout,
+    pub vis: &'a [u32],
+    pub cols: &'a [u32],
+}
+
+impl CachedSight<'_> {
+    /// The slots (of `nk`) that read the cache.
+    fn cached(&self, nk: usize) -> u32 {
+        (0..nk.min(self.cols.len()))
+            .filter(|&k| self.cols[k] != super::sight_cache::NO_COLUMN)
+            .fold(0, |m, k| m | 1 << k)
+    }
+
+    /// Bit k of `cached`: x (normal n) on triangle t faces slot k's light and sees half of it
+    /// (`sight_cache.glsl`'s `cache_sight`); where the points around x disagree, x's own ray.
+    fn bits(
+        &self,
+        mesh: &Mesh,
+        lights: &[&GpuLight],
+        cached: u32,
+        t: usize,
+        (x, n): (Vec3, Vec3),
+    ) -> u32 {
+        let w = self.layout.weights(mesh, t, x);
+        let half = 0.5 * SIGHT_CACHE_SAMPLES as f32;
+        (0..lights.len())
+            .filter(|&k| cached >> k & 1 == 1 && super::sight::faces_light(x, n, lights[k]))
+            .filter(|&k| {
+                let (col, sharp) = (self.cols[k] & 0xFF, self.cols[k] & SHARP != 0);
+                let count = |p: u32| super::sight_cache::count(self.vis, p, col);
+                let said: Vec<f32> = (w.iter().filter(|p| p.1 > 0.0))
+                    .map(|p| count(p.0))
+                    .collect();
+                let top = said.iter().fold(-1f32, |m, &c| m.max(c));
+                let bottom = said.iter().fold(1e9f32, |m, &c| m.min(c));
+                match sharp && top >= half && bottom < half && top - bottom >= half {
+                    true => sees_light(mesh, x, n, lights[k]),
+                    false => w.iter().map(|p| p.1 * count(p.0)).sum::<f32>() >= half,
+                }
+            })
+            .fold(0, |m, k| m | 1 << k)
+    }
 }
 
 impl SurfaceFit<'_> {
@@ -347,7 +403,15 @@ pub fn reference(
         .collect();
     let pts: Vec<_> = fitted.iter().map(|f| f.map(|(x, n, _)| (x, n))).collect();
     let lights = sight_lights(r, MAX_ORIG);
-    let seen = shared_sight(mesh, &lights, &pts, r.width as usize);
+    let cached = fit.sight.as_ref().map_or(0, |c| c.cached(lights.len()));
+    let mut seen = shared_sight(mesh, &lights, &pts, r.width as usize, cached);
+    if let Some(c) = &fit.sight {
+        for (p, pt) in pts.iter().enumerate() {
+            if let (Some(xn), Some(t)) = (*pt, fit.gtri[p].checked_sub(1)) {
+                seen[p] |= c.bits(mesh, &lights, cached, t as usize, xn);
+            }
+        }
+    }
     let no = r.originals.len().min(MAX_ORIG);
     for (p, f) in fitted.iter().enumerate() {
         let Some((x, n, mut w)) = *f else {

@@ -21,6 +21,7 @@ pub mod renderer;
 pub mod reproject;
 pub mod scene;
 pub mod sight;
+pub mod sight_cache;
 pub mod target_mirror;
 pub mod view_cull;
 

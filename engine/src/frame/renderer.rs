@@ -6,8 +6,8 @@ use std::sync::Arc;
 
 use super::constants::mode_code;
 use super::{
-    features, glossy, irradiance, live, output, reproject, target_mirror, view_cull, FrameBuffers,
-    FrameConstants, FrameScene, Lighting, Mode,
+    features, glossy, irradiance, live, output, reproject, sight_cache, target_mirror, view_cull,
+    FrameBuffers, FrameConstants, FrameScene, Lighting, Mode,
 };
 use crate::bake::GpuLight;
 use crate::error::{Error, Result};
@@ -56,6 +56,12 @@ pub struct Renderer {
     pub(super) glossy_fit: Option<(Option<u32>, Buffer)>,
     pub(super) fitting: bool,
     zero_fit: Buffer,
+    /// Read which still lights a glossy pixel sees from the sight cache ([`sight_cache`]) instead
+    /// of tracing them (on by default).
+    pub use_sight_cache: bool,
+    /// The sight cache's layout and pass (made with the first glossy frame) and the cache.
+    pub(super) sight_pass: Option<sight_cache::SightPass>,
+    pub(super) sight: Option<sight_cache::SightCache>,
     /// The barriers the last frame's graphs recorded (`relit bench frame` prints them).
     barriers: std::cell::Cell<BarrierCount>,
 }
@@ -114,6 +120,9 @@ impl Renderer {
             fill_holes: false,
             glossy_fit: None,
             fitting: false,
+            use_sight_cache: true,
+            sight_pass: None,
+            sight: None,
             zero_fit: Buffer::from_slice(
                 gpu,
                 "glossy fit (none)",
@@ -210,6 +219,7 @@ impl Renderer {
         self.check_frame(lighting, mode)?;
         if self.runs_glossy(mode) {
             self.ensure_glossy_fit()?;
+            self.ensure_sight_cache(lighting)?;
         }
         self.buffers(cam.width, cam.height)?;
         self.barriers.set(BarrierCount::default());
@@ -221,6 +231,8 @@ impl Renderer {
         b.intensity.upload(bytemuck::cast_slice(&ints))?;
         let keep = lighting.keep_buffer(self.scene.originals.len());
         b.keep.upload(bytemuck::cast_slice(&keep))?;
+        b.sight_cols
+            .upload(bytemuck::cast_slice(&self.sight_columns(lighting)))?;
         b.camera.upload(bytes_of(&cam.to_gpu(NEAR, FAR)))?;
         let fc = self.frame_constants(cam, lighting, mode, exposure);
         let push = bytes_of(&fc);
@@ -494,6 +506,15 @@ impl Renderer {
             .set("Ldr", Bind::Buffer(&b.ldr))
             .set("Emitters", Bind::Buffer(&s.emitter_buf))
             .set("Originals", Bind::Buffer(&s.original_buf))
+            .set(
+                "SightTris",
+                Bind::Buffer(self.sight_pass.as_ref().map_or(&self.zero_fit, |p| &p.tris)),
+            )
+            .set(
+                "SightVis",
+                Bind::Buffer(self.sight.as_ref().map_or(&self.zero_fit, |c| &c.vis)),
+            )
+            .set("SightCols", Bind::Buffer(&b.sight_cols))
             .set("LiveVerts", Bind::Buffer(&s.mesh.positions))
             .set("LiveIndices", Bind::Buffer(&s.mesh.indices))
             .set("LiveCaches", Bind::Buffer(live_caches))
