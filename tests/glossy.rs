@@ -588,7 +588,15 @@ fn sight_cache_matches_cpu_reference() {
         alpha_dim: 0.5,
         ..Default::default()
     };
-    r.rebuild_sight_cache(&lighting).unwrap();
+    // The panel alone first (its column), then the lamp lit too: the cache grows its column.
+    let off = Lighting {
+        intensities: vec![0.0],
+        ..lighting.clone()
+    };
+    r.rebuild_sight_cache(&off).unwrap();
+    assert_eq!(r.sight_cache_size().1, 1);
+    r.render(&t.novel, &lighting, Mode::Glossy, 1.0, None)
+        .unwrap();
     let got = r.sight_cache_data(&lighting).unwrap().unwrap();
     // The panel (original) first, then the lamp; both columns read, the lamp's marked small
     // (its hard shadows' edges trace).
@@ -624,5 +632,26 @@ fn sight_cache_matches_cpu_reference() {
             "{what}: floor points dark {dark}, lit {lit}, partly {part}"
         );
     }
+    // A lamp moved live has no column while it moves; one that has settled (its cache
+    // finished, where it was in the last frame) gets one.
+    let moved = lamp_at(Vec3::new(0.45, 2.0, -0.2));
+    let finished = vec![[0.0f32; 4]; r.live.layout().texels()];
+    r.set_live_light(0, &moved).unwrap();
+    r.render(&t.novel, &lighting, Mode::Glossy, 1.0, None)
+        .unwrap();
+    let cols = r.sight_cache_data(&lighting).unwrap().unwrap().cols;
+    assert_eq!(cols[1], sight_cache::NO_COLUMN, "a moving lamp traces");
+    r.set_live_light_cached(0, &moved, finished).unwrap();
+    for _ in 0..2 {
+        r.render(&t.novel, &lighting, Mode::Glossy, 1.0, None)
+            .unwrap();
+    }
+    let got = r.sight_cache_data(&lighting).unwrap().unwrap();
+    assert_eq!(got.lights.len(), 3);
+    assert_eq!(
+        got.cols[1],
+        2 | sight_cache::SHARP,
+        "the settled lamp reads its column"
+    );
     common::assert_no_validation_errors(&gpu);
 }

@@ -886,7 +886,7 @@ fn frame_bench(
         let sight = r.rebuild_sight_cache(&light)?;
         let (points, lights) = r.sight_cache_size();
         println!(
-            "sight cache ({points} points x {lights} lights, once per scene and set of still lights): {:.2} s",
+            "sight cache ({points} points x {lights} lights, once per scene; a light lit later adds its column): {:.2} s",
             sight.as_secs_f64()
         );
     }

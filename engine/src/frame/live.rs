@@ -161,6 +161,13 @@ impl LiveLights {
             .collect()
     }
 
+    /// Whether live light `layer`'s cache holds the converged count of paths at every texel
+    /// (the viewer has refined it, or a path placed it with a finished cache).
+    pub fn converged(&self, layer: usize) -> bool {
+        (self.entries.iter())
+            .any(|e| e.layer as usize == layer && e.count.iter().all(|&c| c >= self.params.paths))
+    }
+
     /// Paths per texel so far of live light `layer`'s cache (None: not live).
     pub fn texel_paths(&self, layer: usize) -> Option<&[u32]> {
         self.entries

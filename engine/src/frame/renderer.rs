@@ -62,6 +62,8 @@ pub struct Renderer {
     /// The sight cache's layout and pass (made with the first glossy frame) and the cache.
     pub(super) sight_pass: Option<sight_cache::SightPass>,
     pub(super) sight: Option<sight_cache::SightCache>,
+    /// The live lights as the last glossy frame had them (a settled one gets a column).
+    pub(super) sight_prev: Vec<(usize, GpuLight)>,
     /// The barriers the last frame's graphs recorded (`relit bench frame` prints them).
     barriers: std::cell::Cell<BarrierCount>,
 }
@@ -123,6 +125,7 @@ impl Renderer {
             use_sight_cache: true,
             sight_pass: None,
             sight: None,
+            sight_prev: Vec::new(),
             zero_fit: Buffer::from_slice(
                 gpu,
                 "glossy fit (none)",

@@ -1,8 +1,10 @@
-//! The sight cache: how much of each still light every surface point sees, traced once per scene
-//! and lighting instead of once per pixel of every frame. On lavapipe the glossy layer's shadow
-//! rays (frame/sight.glsl) were two thirds of its cost, and a light that does not move — an
-//! original light, an added light at its baked place — answers the same every frame. Lights
-//! being moved (live) have no column and keep their rays per pixel.
+//! The sight cache: how much of each still light every surface point sees, traced once per light
+//! instead of once per pixel of every frame. On lavapipe the glossy layer's shadow rays
+//! (frame/sight.glsl) were two thirds of its cost, and a light that does not move — an original
+//! light, an added light at its baked place, a lamp dropped in the viewer once its live cache has
+//! converged — answers the same every frame. A light gets its column when it is first lit or
+//! settles; when the columns run out the cache starts over. Lights being moved have none and
+//! keep their rays per pixel.
 //!
 //! Points: the bake mesh's texels (each vertex once per side of a crease, [`CacheLayout`]) for a
 //! triangle no longer than [`SPACING`], and a grid [`SPACING`] apart on a larger one (the hand-made
@@ -177,13 +179,13 @@ pub fn reference(mesh: &Mesh, layout: &SightLayout, lights: &[GpuLight]) -> Vec<
 struct Push {
     first: u32,
     count: u32,
+    col0: u32,
     ncols: u32,
-    pad: u32,
 }
 
 /// Push as its shader's push block declares it (tests/gpu.rs checks).
 pub(crate) const PUSH_LAYOUT: crate::gpu::PushLayout =
-    crate::push_layout!(Push, [SHADER], [first, count, ncols, pad]);
+    crate::push_layout!(Push, [SHADER], [first, count, col0, ncols]);
 
 /// The layout on the device (made once per scene) and the pass that fills a cache.
 pub struct SightPass {
@@ -231,45 +233,74 @@ impl SightPass {
         })
     }
 
-    /// Traces a cache for `lights` (at most [`COLUMNS`]) over `scene`, chunk by chunk.
-    pub fn run(&self, scene: &RayScene, lights: Vec<GpuLight>) -> Result<SightCache> {
+    /// A cache with a column for each of `lights` over `scene`: `old`'s columns and, after
+    /// them, the lights it lacks (a new cache where they would not fit), traced chunk by chunk.
+    pub fn extend(
+        &self,
+        scene: &RayScene,
+        old: Option<SightCache>,
+        lights: &[GpuLight],
+    ) -> Result<SightCache> {
         if lights.len() > COLUMNS {
             return Err(Error::Other(format!(
                 "the sight cache holds {COLUMNS} lights; {} asked",
                 lights.len()
             )));
         }
+        let mut cache = match old {
+            Some(c) => c,
+            None => self.empty()?,
+        };
+        let new: Vec<GpuLight> = (lights.iter())
+            .filter(|l| cache.column(l).is_none())
+            .copied()
+            .collect();
+        if cache.lights.len() + new.len() > COLUMNS {
+            return self.extend(scene, None, lights);
+        }
+        if !new.is_empty() {
+            self.trace(scene, &cache.vis, cache.lights.len() as u32, &new)?;
+            cache.lights.extend(new);
+        }
+        Ok(cache)
+    }
+
+    /// A cache without columns (its counts are written with its first).
+    fn empty(&self) -> Result<SightCache> {
+        let n = self.layout.points().max(1);
+        let vis = Buffer::new(
+            &self.pipeline.gpu,
+            "sight cache",
+            (n * WORDS * 4) as u64,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            crate::gpu::MemoryLocation::GpuOnly,
+        )?;
+        Ok(SightCache {
+            lights: Vec::new(),
+            vis,
+        })
+    }
+
+    /// Traces `lights` into columns col0.. of `vis`, chunk by chunk.
+    fn trace(&self, scene: &RayScene, vis: &Buffer, col0: u32, lights: &[GpuLight]) -> Result<()> {
         let gpu = &self.pipeline.gpu;
         let n = self.layout.points() as u32;
         let u = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let vis = Buffer::new(
-            gpu,
-            "sight cache",
-            (n.max(1) as usize * WORDS * 4) as u64,
-            u,
-            crate::gpu::MemoryLocation::GpuOnly,
-        )?;
-        let dummy = [<GpuLight as bytemuck::Zeroable>::zeroed()];
-        let lbuf = Buffer::from_slice(
-            gpu,
-            "sight lights",
-            u,
-            if lights.is_empty() { &dummy } else { &lights },
-        )?;
+        let lbuf = Buffer::from_slice(gpu, "sight lights", u, lights)?;
         let mut first = 0;
         while first < n {
             let push = Push {
                 first,
                 count: CHUNK.min(n - first),
+                col0,
                 ncols: lights.len() as u32,
-                pad: 0,
             };
             let binds = [
                 ("tlas", Bind::Accel(scene.tlas.raw)),
                 ("SightPoints", Bind::Buffer(&self.pos)),
                 ("SightNormals", Bind::Buffer(&self.nrm)),
                 ("SightLights", Bind::Buffer(&lbuf)),
-                ("SightOut", Bind::Buffer(&vis)),
+                ("SightOut", Bind::Buffer(vis)),
             ];
             let mut res = Ok(());
             gpu.submit(|cmd| {
@@ -284,66 +315,84 @@ impl SightPass {
             res?;
             first += push.count;
         }
-        Ok(SightCache { lights, vis })
+        Ok(())
     }
 }
 
 impl super::Renderer {
     /// The glossy layer's slots under `lighting` in sight.glsl's order (the original lights, at
-    /// most MAX_ORIG, then the lit added lights) and whether each light is still (not live).
+    /// most MAX_ORIG, then the lit added lights) and whether each should have a column: a light
+    /// not being moved, or a live one that has settled (its cache converged, where it was in
+    /// the last frame: a dropped lamp, not one a path moves every frame).
     fn sight_slots(&self, lighting: &Lighting) -> Vec<(GpuLight, bool)> {
         let s = &self.scene;
         let lit = |l: &usize| lighting.intensities.get(*l).copied().unwrap_or(0.0) > 0.0;
+        let settled = |l: usize| {
+            let here = bytemuck::bytes_of(&s.emitters[l]);
+            self.live.converged(l)
+                && (self.sight_prev.iter()).any(|(k, p)| *k == l && bytemuck::bytes_of(p) == here)
+        };
         let originals = (s.originals.iter().take(super::glossy::MAX_ORIG)).map(|o| (o.light, true));
         let lamps = (0..s.emitters.len())
             .filter(lit)
-            .map(|l| (s.emitters[l], !self.live.is_live(l)));
+            .map(|l| (s.emitters[l], !self.live.is_live(l) || settled(l)));
         originals.chain(lamps).take(COLUMNS).collect()
     }
 
-    /// Traces the sight cache again if a still light of `lighting` has no column in it.
+    /// Adds the columns the lights of `lighting` that should have one lack (a new cache when the
+    /// columns run out), and notes where the live lights are.
     pub(super) fn ensure_sight_cache(&mut self, lighting: &Lighting) -> Result<()> {
         if !self.use_sight_cache || self.fitting {
             return Ok(());
         }
-        let slots = self.sight_slots(lighting);
-        let have = (self.sight.as_ref()).is_some_and(|c| {
-            slots
-                .iter()
-                .all(|(l, still)| !still || c.column(l).is_some())
-        });
-        match have {
-            true => Ok(()),
-            false => self.rebuild_sight_cache(lighting).map(|_| ()),
+        let wanted: Vec<GpuLight> = (self.sight_slots(lighting).into_iter())
+            .filter_map(|(l, want)| want.then_some(l))
+            .collect();
+        self.sight_prev = (0..self.scene.emitters.len())
+            .filter(|&l| self.live.is_live(l))
+            .map(|l| (l, self.scene.emitters[l]))
+            .collect();
+        let have =
+            (self.sight.as_ref()).is_some_and(|c| wanted.iter().all(|l| c.column(l).is_some()));
+        if !have {
+            self.extend_sight_cache(wanted)?;
         }
+        Ok(())
     }
 
-    /// Traces the sight cache for the still lights of `lighting` and returns how long it took:
-    /// what a glossy frame adds when a light stops moving or a new one is lit (`relit bench`
-    /// reports it).
-    pub fn rebuild_sight_cache(&mut self, lighting: &Lighting) -> Result<std::time::Duration> {
-        let t0 = std::time::Instant::now();
+    fn extend_sight_cache(&mut self, lights: Vec<GpuLight>) -> Result<()> {
         if self.sight_pass.is_none() {
             self.sight_pass = Some(SightPass::new(&self.gpu, &self.scene.geom)?);
         }
-        let still: Vec<GpuLight> = (self.sight_slots(lighting).into_iter())
-            .filter_map(|(l, still)| still.then_some(l))
-            .collect();
-        self.sight = None;
+        let old = self.sight.take();
         let pass = self.sight_pass.as_ref().unwrap();
-        self.sight = Some(pass.run(&self.scene.mesh, still)?);
+        self.sight = Some(pass.extend(&self.scene.mesh, old, &lights)?);
+        Ok(())
+    }
+
+    /// Traces the sight cache anew for the lights of `lighting` that should have a column and
+    /// returns how long it took: what a scene's first glossy frame adds (`relit bench` reports
+    /// it); a light lit later, or a lamp dropped in the viewer, adds its own column (a quarter
+    /// of that for the demo room's four lights).
+    pub fn rebuild_sight_cache(&mut self, lighting: &Lighting) -> Result<std::time::Duration> {
+        let t0 = std::time::Instant::now();
+        self.sight = None;
+        let wanted: Vec<GpuLight> = (self.sight_slots(lighting).into_iter())
+            .filter_map(|(l, want)| want.then_some(l))
+            .collect();
+        self.extend_sight_cache(wanted)?;
         Ok(t0.elapsed())
     }
 
     /// Each slot's column under `lighting` (`SightCols`, with [`SHARP`] for a small light):
-    /// [`NO_COLUMN`] for a light being moved,
-    /// one that moved since the cache was made, and all of them with the cache off.
+    /// [`NO_COLUMN`] where the light as it is now has none (being moved, moved since) and for all
+    /// of them with the cache off.
     pub(super) fn sight_columns(&self, lighting: &Lighting) -> Vec<u32> {
         let mut cols = vec![NO_COLUMN; COLUMNS];
         if let (true, Some(c)) = (self.use_sight_cache, &self.sight) {
-            for (k, (l, still)) in self.sight_slots(lighting).iter().enumerate() {
+            for (k, (l, _)) in self.sight_slots(lighting).iter().enumerate() {
                 let sharp = super::glossy::light_frame(l).2 <= SIGHT_SHARP_AREA;
-                if let (true, Some(col)) = (*still, c.column(l)) {
+                if let Some(col) = c.column(l) {
                     cols[k] = col | if sharp { SHARP } else { 0 };
                 }
             }
