@@ -4,6 +4,7 @@
 // constants norig, nlights, alpha_dim.
 #ifndef RELIT_LOBE_GLSL
 #define RELIT_LOBE_GLSL
+#include "nee.glsl"
 
 const uint LOBES = 3u;     // regressors: the original lights through three lobe widths
 const uint MAX_ORIG = 8u;  // original lights that take part in the fit (shadow rays per pixel)
@@ -36,11 +37,7 @@ bool sees_light(vec3 x, vec3 n, Light l) {
     vec3 d = c - x;
     float dist = length(d);
     if (dot(d, n) <= 0.0 || dist < 0.06) return false;
-    rayQueryEXT rq;
-    rayQueryInitializeEXT(rq, tlas, gl_RayFlagsOpaqueEXT | gl_RayFlagsTerminateOnFirstHitEXT, 0xFF,
-                          x + n * SIGHT_LIFT, 1e-3, d / dist, dist - 0.05);
-    while (rayQueryProceedEXT(rq)) {}
-    return rayQueryGetIntersectionTypeEXT(rq, true) == gl_RayQueryCommittedIntersectionNoneEXT;
+    return !occluded(x + n * SIGHT_LIFT, d / dist, dist - 0.05);
 }
 
 // Light l as seen from x: its solid angle Ω (0 from behind) and the unit direction w to its

@@ -19,6 +19,8 @@ layout(set = 0, binding = 2) readonly buffer SightNormals { vec4 normals[]; };
 layout(set = 0, binding = 3, scalar) readonly buffer SightLights { Light lights[]; };
 layout(set = 0, binding = 4) buffer SightOut { uint vis[]; };
 
+#include "nee.glsl"
+
 // Columns col0 .. col0 + ncols − 1 are traced; the point's other columns are kept (a cache grows
 // a column per newly lit light), and with col0 = 0 its words start from zero.
 layout(push_constant) uniform Push { uint first; uint count; uint col0; uint ncols; } pc;
@@ -30,11 +32,7 @@ bool reaches(vec3 x, vec3 n, vec3 q) {
     float dist = length(d);
     if (dist < 0.06) return false;
     vec3 o = x + (dot(d, n) >= 0.0 ? n : -n) * SIGHT_LIFT;
-    rayQueryEXT rq;
-    rayQueryInitializeEXT(rq, tlas, gl_RayFlagsOpaqueEXT | gl_RayFlagsTerminateOnFirstHitEXT, 0xFF,
-                          o, 1e-3, d / dist, dist - 0.05);
-    while (rayQueryProceedEXT(rq)) {}
-    return rayQueryGetIntersectionTypeEXT(rq, true) == gl_RayQueryCommittedIntersectionNoneEXT;
+    return !occluded(o, d / dist, dist - 0.05);
 }
 
 void main() {

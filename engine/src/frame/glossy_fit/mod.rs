@@ -22,6 +22,7 @@ use std::collections::{BTreeMap, HashMap};
 
 use glam::Vec3;
 
+mod fill;
 mod smooth;
 
 use super::{glossy, Lighting, Mode, Renderer};
@@ -44,6 +45,9 @@ const PLANE_TILT: f32 = 10.0;
 /// misses, photo noise); ALBEDO_EPS keeps dark channels from deciding alone.
 const ALBEDO_RATIO: f32 = 1.4;
 const ALBEDO_EPS: f32 = 0.02;
+/// Standard errors by which a patch's own slope must miss its plane's fit to refuse it
+/// (`fill::holes`).
+const REJECT_SE: f32 = 3.0;
 
 /// The centred sums of the fit I_j ≈ D + s·X_j over a triangle's pixels: Σ|X − X̄|² and
 /// Σ(X − X̄)·(I − Ī) per lobe, Σ|I − Ī|², the view samples and the pixels.
@@ -105,6 +109,21 @@ impl FitSums {
             return [0.0; 4];
         }
         best
+    }
+
+    /// Whether these sums reject the fit `f` (one lobe's strength): their own slope on f's lobe
+    /// lies more than `REJECT_SE` standard errors from f's strength.
+    fn rejects(&self, f: [f32; 4]) -> bool {
+        let c = (0..LOBES)
+            .max_by(|&a, &b| f[a].total_cmp(&f[b]))
+            .unwrap_or(0);
+        if self.xx[c] <= 1e-12 {
+            return false;
+        }
+        let dof = (self.samples - self.pixels - 1.0).max(1.0);
+        let s = self.xi[c] / self.xx[c];
+        let se = ((self.ii - s * self.xi[c]).max(1e-12) / dof / self.xx[c]).sqrt();
+        (s - f[c]).abs() > REJECT_SE * se
     }
 }
 
@@ -175,31 +194,41 @@ fn albedo_bin(s: &FitSums) -> Option<Bin> {
     )
 }
 
-/// Whether patch q is of patch p's surface and material: within GLOSSY_REGION, normals within
-/// ~25°, q off p's plane by at most 3 cm + 10 % of their distance, and their pseudo-albedos
-/// within ALBEDO_RATIO of each other in every channel (a mirror or a poster on a wall is another
-/// material on the same plane).
-fn same_surface(p: &Patch, q: &Patch) -> bool {
+/// Whether patch q is on patch p's surface: within GLOSSY_REGION, normals within ~25°, q off
+/// p's plane by at most 3 cm + 10 % of their distance.
+fn same_plane(p: &Patch, q: &Patch) -> bool {
     let d = q.centre - p.centre;
     let dist = d.length();
-    let (a, b) = (p.sums.mean_albedo(), q.sums.mean_albedo());
-    let ratio = (a + ALBEDO_EPS) / (b + ALBEDO_EPS);
     dist <= GLOSSY_REGION
         && p.normal.dot(q.normal) >= 0.9
         && d.dot(p.normal).abs() <= 0.03 + 0.1 * dist
+}
+
+/// Whether patch q is of patch p's surface and material: on its plane, and their pseudo-albedos
+/// within ALBEDO_RATIO of each other in every channel (a mirror or a poster on a wall is another
+/// material on the same plane).
+fn same_surface(p: &Patch, q: &Patch) -> bool {
+    if (p.sums.pixels == 0.0) != (q.sums.pixels == 0.0) {
+        return false;
+    }
+    let (a, b) = (p.sums.mean_albedo(), q.sums.mean_albedo());
+    let ratio = (a + ALBEDO_EPS) / (b + ALBEDO_EPS);
+    same_plane(p, q)
         && ratio.max_element() <= ALBEDO_RATIO
         && ratio.min_element() >= 1.0 / ALBEDO_RATIO
 }
 
 /// A pseudo-albedo bin (`albedo_bin`).
 type Bin = [i32; 3];
+/// The bin of a cell's triangles without sums.
+const UNSEEN: Bin = [i32::MIN; 3];
 /// The patches of a mesh, by cell and albedo bin; ordered, so that every run pools them in one
 /// order and a glossy frame is the same bytes each time.
 type Patches = BTreeMap<Cell, Vec<(Bin, Patch)>>;
-/// Each triangle's cell and bin (None: no render saw it).
-type TriPatch = (Cell, Option<Bin>);
-/// A cell's fits: per bin, (w_1..3, t) and the patch's pixels.
-type CellFits = Vec<(Bin, [f32; 4], f32)>;
+/// Each triangle's cell and bin.
+type TriPatch = (Cell, Bin);
+/// A cell's fits: per bin, (w_1..3, t).
+type CellFits = Vec<(Bin, [f32; 4])>;
 
 fn patches(mesh: &Mesh, acc: &[FitSums]) -> (Patches, Vec<TriPatch>) {
     let mut patches = Patches::new();
@@ -209,8 +238,10 @@ fn patches(mesh: &Mesh, acc: &[FitSums]) -> (Patches, Vec<TriPatch>) {
         let cr = (b - a).cross(c - a);
         let (centre, area) = ((a + b + c) / 3.0, 0.5 * cr.length());
         let (k, bin) = (cell(centre, cr.normalize_or_zero()), albedo_bin(&acc[t]));
+        // Triangles without sums (no photo, or in every original light's shadow) make their
+        // cell's UNSEEN patch: no pool takes it, and it takes its plane's fit (`fill::holes`).
+        let bin = bin.unwrap_or(UNSEEN);
         of_tri.push((k, bin));
-        let Some(bin) = bin else { continue };
         let list = patches.entry(k).or_default();
         let i = match list.iter().position(|(b, _)| *b == bin) {
             Some(i) => i,
@@ -232,17 +263,28 @@ fn patches(mesh: &Mesh, acc: &[FitSums]) -> (Patches, Vec<TriPatch>) {
     (patches, of_tri)
 }
 
+/// A patch: its cell and its index in the cell's list.
+type PatchKey = (Cell, usize);
+
 /// The patches by coarse cells of GLOSSY_REGION: those that can pool with a patch lie in the 27
 /// coarse cells around its own.
 struct Reach<'a> {
-    cells: HashMap<(i32, i32, i32), Vec<&'a Patch>>,
+    cells: HashMap<(i32, i32, i32), Vec<Keyed<'a>>>,
 }
+
+/// A patch with its key.
+type Keyed<'a> = (PatchKey, &'a Patch);
 
 impl<'a> Reach<'a> {
     fn new(patches: &'a Patches) -> Reach<'a> {
-        let mut cells: HashMap<(i32, i32, i32), Vec<&Patch>> = HashMap::new();
-        for (_, p) in patches.values().flatten() {
-            cells.entry(Self::coarse(p.centre)).or_default().push(p);
+        let mut cells: HashMap<(i32, i32, i32), Vec<_>> = HashMap::new();
+        for (k, list) in patches {
+            for (i, (_, p)) in list.iter().enumerate() {
+                cells
+                    .entry(Self::coarse(p.centre))
+                    .or_default()
+                    .push(((*k, i), p));
+            }
         }
         Reach { cells }
     }
@@ -252,44 +294,53 @@ impl<'a> Reach<'a> {
         (g.x as i32, g.y as i32, g.z as i32)
     }
 
+    /// The patches on p's plane (`same_plane`), in one order every run.
+    fn plane<'b>(&'b self, p: &'b Patch) -> impl Iterator<Item = &'b Keyed<'a>> + 'b {
+        let (x, y, z) = Self::coarse(p.centre);
+        let around =
+            (-1..=1).flat_map(|a| (-1..=1).flat_map(move |b| (-1..=1).map(move |c| (a, b, c))));
+        let cells =
+            around.filter_map(move |(dx, dy, dz)| self.cells.get(&(x + dx, y + dy, z + dz)));
+        cells.flatten().filter(move |(_, q)| same_plane(p, q))
+    }
+
     /// Patch p's sums pooled with those of every patch on its surface (`same_surface`).
     fn pooled(&self, p: &Patch) -> FitSums {
-        let (x, y, z) = Self::coarse(p.centre);
         let mut sums = FitSums::default();
-        for (dx, dy, dz) in
-            (-1..=1).flat_map(|a| (-1..=1).flat_map(move |b| (-1..=1).map(move |c| (a, b, c))))
-        {
-            let near = self.cells.get(&(x + dx, y + dy, z + dz));
-            for q in near.into_iter().flatten().filter(|q| same_surface(p, q)) {
-                sums.add(&q.sums);
-            }
+        for (_, q) in self.plane(p).filter(|(_, q)| same_surface(p, q)) {
+            sums.add(&q.sums);
         }
         sums
     }
 }
 
 /// Per triangle of `mesh`: (w_1..3, t) from the sums pooled over its surface (module comment),
-/// smoothed between patches (`Near`), and its surface's normal (`surface_normal`). A triangle
-/// no render saw takes the fit of its cell's patch with the most pixels.
+/// smoothed between patches (`Near`), and its surface's normal (`surface_normal`). Patches
+/// without a fit of their own may take their plane's (`fill::holes`).
 pub fn pool(mesh: &Mesh, acc: &[FitSums]) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
     let (patches, of_tri) = patches(mesh, acc);
     let reach = Reach::new(&patches);
-    let fits: HashMap<Cell, CellFits> = (patches.iter())
+    let pooled: HashMap<PatchKey, FitSums> = (patches.iter())
+        .flat_map(|(k, list)| {
+            (list.iter().enumerate()).map(|(i, (_, p))| ((*k, i), reach.pooled(p)))
+        })
+        .collect();
+    let mut fits: HashMap<Cell, CellFits> = (patches.iter())
         .map(|(k, list)| {
             let f =
-                (list.iter()).map(|(bin, p)| (*bin, reach.pooled(p).strengths(), p.sums.pixels));
+                (list.iter().enumerate()).map(|(i, (bin, _))| (*bin, pooled[&(*k, i)].strengths()));
             (*k, f.collect())
         })
         .collect();
+    fill::holes(&patches, &reach, &pooled, &mut fits);
     let near = Near::new(&patches, &fits);
     (mesh.triangles.iter().zip(&of_tri))
         .map(|(tri, (k, bin))| {
             let list = fits.get(k).map_or(&[][..], |v| &v[..]);
-            let own = list.iter().position(|(b, _, _)| Some(*b) == *bin);
-            let most = (0..list.len()).max_by(|&a, &b| list[a].2.total_cmp(&list[b].2));
+            let own = list.iter().position(|(b, _)| b == bin);
             let [a, b, c] = tri.map(|i| Vec3::from(mesh.positions[i as usize]));
             let (centre, face) = ((a + b + c) / 3.0, (b - a).cross(c - a).normalize_or_zero());
-            own.or(most).map_or([[0.0; 4]; 2], |i| {
+            own.map_or([[0.0; 4]; 2], |i| {
                 let key = (*k, i);
                 let n = surface_normal(face, near.normal(&key, centre));
                 [near.at(&key, centre, list[i].1), [n.x, n.y, n.z, 0.0]]
@@ -434,13 +485,18 @@ mod tests {
     /// Sums of 100 pixels seen 10 times each, of pseudo-albedo `a`: lobe 2 with variance 100
     /// and slope `s`, residual variance 1.
     fn sums(s: f32, a: f32) -> FitSums {
+        sums_of(100.0, s, a)
+    }
+
+    /// `sums` of n pixels (variance n, 10n samples).
+    fn sums_of(n: f32, s: f32, a: f32) -> FitSums {
         FitSums {
-            xx: [0.0, 100.0, 0.0],
-            xi: [0.0, 100.0 * s, 0.0],
-            ii: 100.0 * s * s + 1.0,
-            samples: 1000.0,
-            pixels: 100.0,
-            albedo: Vec3::splat(100.0 * a),
+            xx: [0.0, n, 0.0],
+            xi: [0.0, n * s, 0.0],
+            ii: n * s * s + 1.0,
+            samples: 10.0 * n,
+            pixels: n,
+            albedo: Vec3::splat(n * a),
         }
     }
 
@@ -551,6 +607,37 @@ mod tests {
         assert!((fit[0][1] - 0.3).abs() < 1e-3 && (fit[1][1] - 0.3).abs() < 1e-3);
         for f in &fit[2..] {
             assert_eq!(f[..3], [0.0; 3], "the wall takes none of the mirror's fit");
+        }
+    }
+
+    /// A floor's patches of odd pseudo-albedo (E_src errs beside shadows) take the floor's fit
+    /// when they have too few photos to tell (a), and so do triangles without sums (in every
+    /// original light's shadow, c); one whose many photos show no highlight keeps none (b).
+    #[test]
+    fn holes_in_a_floor_take_its_fit_unless_their_photos_refuse_it() {
+        let mut m = empty();
+        let mut acc = Vec::new();
+        let (few, refuses, unseen) = ((1, 1), (6, 6), (3, 5));
+        let mut tris = HashMap::new();
+        for i in 0..8 {
+            for j in 0..8 {
+                let o = Vec3::new(i as f32 * CELL + 0.01, 0.0, j as f32 * CELL + 0.01);
+                tris.insert((i, j), quad(&mut m, o, Vec3::Z * 0.2, Vec3::X * 0.2));
+                let s = match (i, j) {
+                    k if k == few => sums_of(2.0, 0.2, 1.0),
+                    k if k == refuses => sums(0.0, 1.0),
+                    k if k == unseen => FitSums::default(),
+                    _ => sums(0.2, 0.4),
+                };
+                acc.extend([s; 2]);
+            }
+        }
+        let (fit, _) = pool(&m, &acc);
+        for (k, ts) in &tris {
+            for &t in ts {
+                let want = if *k == refuses { 0.0 } else { 0.2 };
+                assert!((fit[t][1] - want).abs() < 1e-3, "{k:?}: {:?}", fit[t]);
+            }
         }
     }
 

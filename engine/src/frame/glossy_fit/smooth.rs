@@ -107,7 +107,7 @@ mod tests {
             };
             let k = cell(centre, Vec3::Y);
             patches.insert(k, vec![([0; 3], p)]);
-            fits.insert(k, vec![([0; 3], [0.0, s, 0.0, 20.0], 100.0)]);
+            fits.insert(k, vec![([0; 3], [0.0, s, 0.0, 20.0])]);
         }
         let near = Near::new(&patches, &fits);
         let at = |x: f32| {
