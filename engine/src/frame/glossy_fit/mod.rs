@@ -87,7 +87,6 @@ impl FitSums {
     /// stronger than a rough dielectric's): a near-mirror, such as hand_room2's mirror, whose
     /// patches took the middle lobe by chance and glowed around the lamp at oblique views.
     pub fn strengths(&self) -> [f32; 4] {
-        let dof = (self.samples - self.pixels - 1.0).max(1.0);
         let slope = |c: usize| (self.xi[c] / self.xx[c].max(1e-12)).max(0.0);
         let over = |c: usize| self.xx[c] > 1e-12 && slope(c) > glossy::lobe_s_max(c);
         let mut best = [0f32; 4];
@@ -97,8 +96,7 @@ impl FitSums {
                 continue;
             }
             let s = slope(c);
-            let var = (self.ii - s * self.xi[c]).max(1e-12) / dof;
-            let t = s * (self.xx[c] / var).sqrt();
+            let t = s * (self.xx[c] / self.residual_var(c, s)).sqrt();
             if t > best[3] {
                 best = [0.0; 4];
                 best[c] = s;
@@ -120,10 +118,16 @@ impl FitSums {
         if self.xx[c] <= 1e-12 {
             return false;
         }
-        let dof = (self.samples - self.pixels - 1.0).max(1.0);
         let s = self.xi[c] / self.xx[c];
-        let se = ((self.ii - s * self.xi[c]).max(1e-12) / dof / self.xx[c]).sqrt();
+        let se = (self.residual_var(c, s) / self.xx[c]).sqrt();
         (s - f[c]).abs() > REJECT_SE * se
+    }
+
+    /// The residual variance per degree of freedom (samples less one mean per pixel) of the fit
+    /// with slope s on lobe c.
+    fn residual_var(&self, c: usize, s: f32) -> f32 {
+        let dof = (self.samples - self.pixels - 1.0).max(1.0);
+        (self.ii - s * self.xi[c]).max(1e-12) / dof
     }
 }
 
