@@ -57,10 +57,11 @@ void light_seen(vec3 x, Light l, out float omega, out vec3 w) {
 // seen from unit direction v over normal n: Ω·D(n·h)·F(v·h)·G1(n·v)·G1(n·w)/(4·n·v·F0), h the
 // half vector, D the GGX distribution with α widened by the light's size (α'² = α² + Ω/8π: the
 // light's disk, of radius √(Ω/π), halves in half-vector space), F Schlick's Fresnel of a
-// dielectric (F0 = 0.04; the fitted strength s then reads as F0/0.04: 1 for plastic, lacquer,
-// a TV), G1 Smith's masking of lobe α (without it a lamp at grazing incidence lit a rough
-// table top with Fresnel's full 25×: sg700004). Zero from views more grazing than
-// GLOSSY_COS_MIN (the sums pass skips them).
+// dielectric (F0 = GLOSSY_F0, 0.04; divided by it, the fitted strength s reads as the
+// surface's F0: 0.04 for plastic, lacquer, a TV; hand_room's table top fits 0.041), G1 Smith's
+// masking of lobe α (without it a lamp at grazing incidence lit a rough table top with
+// Fresnel's full 25×: sg700004). Zero from views more grazing than GLOSSY_COS_MIN (the sums
+// pass skips them).
 // Smith's GGX masking of one direction at cosine c to the normal.
 float smith_g1(float alpha, float c) {
     float a2 = alpha * alpha;
@@ -75,7 +76,7 @@ float lobe_weight(float alpha, float omega, vec3 w, vec3 v, vec3 n) {
     vec3 h = normalize(w + v);
     float ch = max(dot(n, h), 0.0);
     float t = ch * ch * (a2 - 1.0) + 1.0;
-    float f = 1.0 + (1.0 / 0.04 - 1.0) * pow(1.0 - clamp(dot(v, h), 0.0, 1.0), 5.0);
+    float f = 1.0 + (1.0 / GLOSSY_F0 - 1.0) * pow(1.0 - clamp(dot(v, h), 0.0, 1.0), 5.0);
     return omega * a2 / (PI * t * t) * f * smith_g1(alpha, cv) * smith_g1(alpha, dot(n, w)) / (4.0 * cv);
 }
 

@@ -19,8 +19,8 @@ use super::sight_cache::SHARP;
 use super::RefInputs;
 use crate::bake::GpuLight;
 use crate::constants::{
-    GLOSSY_COS_MIN, GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3, GLOSSY_MIN_VIEWS, GLOSSY_SHARE,
-    GLOSSY_S_MAX, SIGHT_CACHE_SAMPLES,
+    GLOSSY_COS_MIN, GLOSSY_F0, GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3, GLOSSY_MIN_VIEWS,
+    GLOSSY_SHARE, GLOSSY_S_MAX, SIGHT_CACHE_SAMPLES,
 };
 use crate::gpu::shaders;
 use crate::scene::Mesh;
@@ -82,7 +82,7 @@ pub fn sees_light(mesh: &Mesh, x: Vec3, n: Vec3, l: &GpuLight) -> bool {
 /// The GGX lobe of roughness α that light l (solid angle Ω, unit direction w from x) gives
 /// towards unit v over normal n (`lobe.glsl`'s `lobe_weight`):
 /// Ω·D(n·h)·F(v·h)·G1(n·v)·G1(n·w)/(4·n·v·F0), α widened to α'² = α² + Ω/8π in D, F Schlick's
-/// with F0 = 0.04, G1 Smith's masking; zero below GLOSSY_COS_MIN.
+/// with F0 = GLOSSY_F0, G1 Smith's masking; zero below GLOSSY_COS_MIN.
 pub fn lobe_weight(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> f32 {
     use std::f32::consts::PI;
     let cv = n.dot(v);
@@ -93,7 +93,7 @@ pub fn lobe_weight(alpha: f32, omega: f32, w: Vec3, v: Vec3, n: Vec3) -> f32 {
     let h = (w + v).normalize();
     let ch = n.dot(h).max(0.0);
     let t = ch * ch * (a2 - 1.0) + 1.0;
-    let f = 1.0 + (1.0 / 0.04 - 1.0) * (1.0 - v.dot(h).clamp(0.0, 1.0)).powi(5);
+    let f = 1.0 + (1.0 / GLOSSY_F0 - 1.0) * (1.0 - v.dot(h).clamp(0.0, 1.0)).powi(5);
     omega * a2 / (PI * t * t) * f * smith_g1(alpha, cv) * smith_g1(alpha, n.dot(w)) / (4.0 * cv)
 }
 
@@ -129,30 +129,41 @@ pub fn lobe_light(x: Vec3, v: Vec3, n: Vec3, alpha: f32, l: &GpuLight) -> Vec3 {
     Vec3::from_slice(&l.radiance[..3]) * lobe_weight(alpha, omega, w, v, n)
 }
 
-/// Planes of the sums pass: Σ|X − X̄|² and Σ(X − X̄)·(I − Ī) per lobe, (Σ|I − Ī|², views,
-/// original lights seen, 0).
+/// Planes of the sums pass: Σ|X' − X̄'|² and Σ(X' − X̄')·(I − Ī) per lobe, (Σ|I − Ī|², views,
+/// original lights seen, 0); X'_j = X_j − (1/GLOSSY_F0 − 1)·Ī·(1 − n·v_j)⁵, a coated
+/// surface's regressor (`glossy_sums.comp`).
 pub const SUM_PLANES: usize = 3;
 
 /// The sums pass's running sums over the views that see a point.
+/// g: a view's grazing term (1 − n·v)⁵.
 #[derive(Default)]
 struct Sums {
     x: [Vec3; LOBES],
     xx: [f32; LOBES],
     xi: [f32; LOBES],
+    gx: [Vec3; LOBES],
     i: Vec3,
     ii: f32,
+    gi: Vec3,
+    g: f32,
+    gg: f32,
     n: f32,
 }
 
 impl Sums {
-    fn add(&mut self, col: Vec3, xs: [Vec3; LOBES]) {
+    fn add(&mut self, col: Vec3, xs: [Vec3; LOBES], cos_v: f32) {
+        let g = (1.0 - cos_v).powi(5);
         for (c, xc) in xs.into_iter().enumerate() {
             self.x[c] += xc;
             self.xx[c] += xc.dot(xc);
             self.xi[c] += xc.dot(col);
+            self.gx[c] += g * xc;
         }
         self.i += col;
         self.ii += col.dot(col);
+        self.gi += g * col;
+        self.g += g;
+        self.gg += g * g;
         self.n += 1.0;
     }
 
@@ -162,12 +173,16 @@ impl Sums {
         if self.n < GLOSSY_MIN_VIEWS as f32 {
             return None;
         }
-        let im = self.i / self.n;
+        let k = 1.0 / GLOSSY_F0 - 1.0;
+        let (im, gm) = (self.i / self.n, self.g / self.n);
+        let zz = im.dot(im) * (self.gg - self.n * gm * gm);
+        let zi = im.dot(self.gi - self.n * gm * im);
         let mut out = [[0f32; 4]; SUM_PLANES];
         for c in 0..LOBES {
             let xm = self.x[c] / self.n;
-            out[0][c] = self.xx[c] - self.n * xm.dot(xm);
-            out[1][c] = self.xi[c] - self.n * xm.dot(im);
+            let zx = im.dot(self.gx[c] - self.n * gm * xm);
+            out[0][c] = (self.xx[c] - self.n * xm.dot(xm) - 2.0 * k * zx + k * k * zz).max(0.0);
+            out[1][c] = self.xi[c] - self.n * xm.dot(im) - k * zi;
         }
         out[2] = [self.ii - self.n * im.dot(im), self.n, seen as f32, 0.0];
         Some(out)
@@ -287,7 +302,7 @@ pub fn sums_reference(r: &RefInputs, mesh: &Mesh, comp: &[[f32; 4]]) -> Vec<[f32
             let px = super::reproject::project_px(r.data, j, x);
             let col = super::maps::sample_bilinear(&r.maps.img[j], vw, vh, px);
             let xs = [0, 1, 2].map(|c| lobe_originals(r, seen, (x, n), v, c));
-            sums.add(col, xs);
+            sums.add(col, xs, n.dot(v));
         }
         if let Some(planes) = sums.planes(seen) {
             for (k, v) in planes.into_iter().enumerate() {
@@ -520,5 +535,46 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A coated surface (F0 0.04) photographed from views 0.3–0.95 off grazing, its views nearer
+    /// the light's mirror direction the steeper ones: its diffuse part darkens towards grazing
+    /// views by (1 − F). The sums' slope reads its F0 whether the photos show the light's
+    /// highlight or hardly (X alone read 0.10 and 5.9 there), and a matte surface's as none.
+    #[test]
+    fn the_sums_read_a_coated_surfaces_f0_from_its_darkening_and_its_highlights() {
+        let f0 = 0.04;
+        let slope = |x_scale: f32, coat: f32| {
+            let (mut sums, mut plain) = (Sums::default(), [0.0f32; 4]);
+            for j in 0..10 {
+                let c = 0.3 + 0.65 * j as f32 / 9.0;
+                let x = x_scale * c.powi(4);
+                let fresnel = f0 + (1.0 - f0) * (1.0 - c).powi(5);
+                let i = 0.1 * (1.0 - coat * fresnel) + coat * f0 * x;
+                sums.add(Vec3::splat(i), [Vec3::ZERO, Vec3::splat(x), Vec3::ZERO], c);
+                plain = [
+                    plain[0] + x,
+                    plain[1] + i,
+                    plain[2] + x * x,
+                    plain[3] + x * i,
+                ];
+            }
+            let p = sums.planes(0).unwrap();
+            let [sx, si, sxx, sxi] = plain;
+            (
+                p[1][1] / p[0][1],
+                (sxi - sx * si / 10.0) / (sxx - sx * sx / 10.0),
+            )
+        };
+        for x_scale in [0.2, 0.002] {
+            let (s, plain) = slope(x_scale, 1.0);
+            assert!(
+                (s - f0).abs() < 0.15 * f0,
+                "X × {x_scale}: {s} (X alone {plain})"
+            );
+            assert!(plain > 1.5 * f0, "{plain}");
+        }
+        let (s, _) = slope(0.2, 0.0);
+        assert!(s.abs() < 1e-4, "matte: {s}");
     }
 }
