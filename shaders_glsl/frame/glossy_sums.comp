@@ -64,11 +64,10 @@ void main() {
     for (uint a = 0u; a < pc.nactive; ++a) {
         uint j = active_views[a];
         if (visible_pixel(j, x, pc.view_w, pc.view_h) < 0) continue;
-        vec3 ci = cam_center(cams[j]);
+        vec3 v = normalize(cam_center(cams[j]) - x);
         // Grazing views: the proxy's errors grow and Schlick's Fresnel is least sure.
-        if (dot(n, normalize(ci - x)) < GLOSSY_COS_MIN) continue;
+        if (dot(n, v) < GLOSSY_COS_MIN) continue;
         vec3 col = sample_map(tex_img, project_px(j, x), j);
-        vec3 v = normalize(ci - x);
         vec3 xs[LOBES];
         lobe_originals(x, v, n, seen, xs);
         float g = pow(1.0 - dot(n, v), 5.0);
