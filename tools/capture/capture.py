@@ -42,6 +42,9 @@ MIN_TRACK = 3
 MAX_REPROJ_PX = 2.0
 # The dense surface is trimmed this many fusion voxels from the nearest dense point.
 DENSE_REACH = 6.0
+# The dense proxy's triangle budget: beyond it the bake slows and the view is no better
+# (docs/captures.md gives the measurement).
+MAX_TRIANGLES = 500_000
 
 
 class CaptureError(Exception):
@@ -417,7 +420,7 @@ def dense_views(und: Path):
     return rec, views
 
 
-def dense_points(und: Path, cache: Path, prog: Progress):
+def dense_points(und: Path, cache: Path, prog: Progress, holes="backdrop"):
     """The dense step (tools/capture/dense.py) over the undistorted photos: fused oriented points
     and what the progress line says."""
     import dense
@@ -426,17 +429,20 @@ def dense_points(und: Path, cache: Path, prog: Progress):
     xyz, _ = good_points(rec)
     t0 = time.time()
     try:
-        res = dense.run(views, xyz, cache=cache, log=lambda s: prog.note(s))
+        res = dense.run(views, xyz, cache=cache, log=lambda s: prog.note(s), holes=holes)
     except dense.DenseError as e:
         raise CaptureError(f"dense step: {e}")
-    msg = (f"{res.stereo_points} points from stereo ({100 * res.kept_share:.0f} % of pixels), "
-           f"{res.plane_points} from {res.planes} planes ({100 * res.filled_share:.0f} % of pixels), "
+    what = {"planes": f"{res.planes} planes", "complete": "the holes interpolated", "backdrop": "the room's box"}
+    filled = "".join(f"{res.filled_points[k]} from {what[k]} ({100 * res.filled_share[k]:.0f} % of pixels), "
+                     for k in res.filled_points)
+    msg = (f"{res.stereo_points} points from stereo ({100 * res.kept_share:.0f} % of pixels), {filled}"
            f"voxel {res.voxel * 1000:.1f} mm, {time.time() - t0:.0f} s")
     return res, msg
 
 
-def dense_surface(res, depth, out: Path, log: Path):
-    """Screened Poisson over the dense points, trimmed to DENSE_REACH voxels from a point."""
+def dense_surface(res, depth, out: Path, log: Path, max_triangles=MAX_TRIANGLES):
+    """Screened Poisson over the dense points, trimmed to DENSE_REACH voxels from a point,
+    decimated to `max_triangles`."""
     import pymeshlab
     from scipy.spatial import cKDTree
 
@@ -453,8 +459,27 @@ def dense_surface(res, depth, out: Path, log: Path):
     keep = near[f].all(1)
     if keep.sum() < 100:
         raise CaptureError(f"the Poisson surface (depth {depth}) keeps {keep.sum()} faces near the dense points")
-    write_ply(out, v, f[keep])
-    return f"{keep.sum()} triangles within {reach:.3f} m of a point (Poisson depth {depth})"
+    v, f = decimated(v, f[keep], max_triangles, log)
+    write_ply(out, v, f)
+    less = f", decimated to {len(f)}" if len(f) < keep.sum() else ""
+    return f"{keep.sum()} triangles within {reach:.3f} m of a point (Poisson depth {depth}){less}"
+
+
+def decimated(v, f, target, log: Path):
+    """The mesh with at most `target` triangles (quadric edge collapse; planes, most of a filled
+    room, lose nothing): the bake traces every photo's pixels against it, and its time grows with
+    the triangles (docs/captures.md)."""
+    import pymeshlab
+
+    if target is None or len(f) <= target:
+        return v, f
+    with quiet(log):
+        ms = pymeshlab.MeshSet()
+        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v, face_matrix=f))
+        ms.meshing_decimation_quadric_edge_collapse(targetfacenum=int(target), preservenormal=True,
+                                                    preservetopology=True, planarquadric=True)
+    m = ms.current_mesh()
+    return m.vertex_matrix(), m.face_matrix()
 
 
 def write_ply(path: Path, v, f):
@@ -489,6 +514,11 @@ def main(argv=None):
                     help="octree depth of the surface (default: the coarsest of 8-12 fine enough for the points' spacing)")
     ap.add_argument("--no-dense", dest="dense", action="store_false",
                     help="the surface over the sparse points only (no dense step)")
+    ap.add_argument("--max-triangles", type=int, default=MAX_TRIANGLES,
+                    help=f"the dense surface's triangle budget (default {MAX_TRIANGLES}; decimated beyond it)")
+    ap.add_argument("--holes", choices=["planes", "complete", "backdrop"], default="backdrop",
+                    help="what fills the pixels stereo keeps no depth for: the room's planes; then also the "
+                         "holes' depth interpolated from around them; then also the room's box (default)")
     a = ap.parse_args(argv)
     try:
         run(a)
@@ -535,7 +565,7 @@ def run(a):
         res, turned = None, 0.0
         if a.dense:
             prog.start("dense", f"plane-sweep stereo, depth maps cached in {work / 'dense'}")
-            res, msg = dense_points(und, work / "dense" / f"{a.size}px", prog)
+            res, msg = dense_points(und, work / "dense" / f"{a.size}px", prog, a.holes)
             turned = level(und, res)
             prog.done(msg + f"; +Y turned {turned:.1f}° to the room's up")
         else:
@@ -549,7 +579,7 @@ def run(a):
             msg = surface(pts, normals(pts, towards), a.poisson_depth, stage / "mesh.ply", work / "meshlab.log")
         else:
             prog.start("mesh", "screened Poisson over the dense points")
-            msg = dense_surface(res, a.poisson_depth, stage / "mesh.ply", work / "meshlab.log")
+            msg = dense_surface(res, a.poisson_depth, stage / "mesh.ply", work / "meshlab.log", a.max_triangles)
         os.replace(und / "images", stage / "images")
         os.replace(und / "sparse", stage / "sparse" / "0")
         prog.done(msg)
@@ -563,6 +593,7 @@ def run(a):
                     "scale_given": a.scale is not None,
                     "size": a.size,
                     "dense": a.dense,
+                    "holes": a.holes if a.dense else None,
                     "up_turned_deg": round(turned, 2),
                 },
                 indent=1,

@@ -20,11 +20,15 @@ this step exists for has none.
 4. **Fusion** (`fuse`): the kept points averaged in voxels of VOXEL_PX pixels' footprint at the
    median depth, normals by principal axes of each voxel's neighbours, turned towards the photos
    that saw it.
-5. **Planes** (`fit_planes`, `fill`): planes found by RANSAC among the fused points, each bounded
+5. **Planes** (`fit_planes`, `fill`): planes found by RANSAC among the fused points, each
    bounded by the room's box when it bounds the room (walls, floor, ceiling), else by the hull of
    its largest connected patch of points (a table top); a photo's pixel with no kept depth whose
    ray meets such a plane first becomes a point of that plane, unless a neighbour sees a surface
    behind it.
+6. **Completion** (`complete`): the holes left, filled by interpolating each photo's inverse
+   depth from around them (harmonic: exact within a plane), with the same free-space check.
+7. **Backdrop** (`backdrop`): what is still without depth, on the room's box where the ray
+   leaves it (the far content a capture does not resolve).
 
 Each photo's depth map is cached in WORK/dense/depth/NAME.npz, so a stopped run resumes.
 """
@@ -61,6 +65,9 @@ PATCH_CELL = 4.0  # voxels: the cells a plane that bounds nothing is joined over
 BOX_MARGIN = 0.05  # the room's box: the fused points' bounds widened by this share
 BOX_PERCENTILE = 1.0  # the bounds leave out this percentage of outlying points on each side
 FREE_MARGIN = 0.05  # a filled point this much nearer than what a neighbour sees is dropped
+COMPLETE_CELL = 4  # pixels: the grid the holes' inverse depth is fitted on
+PLANAR_TOL = 0.01  # a hole's edge fits a plane within this RMS share of its inverse depth
+HOLES = ("planes", "complete", "backdrop")  # what fills the pixels stereo keeps no depth for
 
 
 OUTSIDE = -1e4  # a warped sample outside the neighbour's photo (grey levels are 0–1)
@@ -559,16 +566,143 @@ def free_space(views, i, nbrs, fd, kept):
     return out
 
 
+def complete(depth, cell=COMPLETE_CELL, tol=PLANAR_TOL):
+    """Depth for the holes that lie within one plane: each hole's edge (the known pixels around
+    it) is fitted by an affine function of the pixel coordinates in inverse depth, which a plane
+    is exactly; where the fit's RMS error is within `tol` of the inverse depth, the hole takes it.
+    A hole whose edge spans a depth edge (between a chair's back and the wall behind) fits no
+    plane and is left alone: interpolating across it would stand a membrane in front of what
+    other photos see. Worked on a grid of `cell` pixels (a cell known when most of its pixels
+    are) and interpolated back. Returns depth (0 where known or left alone)."""
+    import cv2
+
+    h, w = depth.shape
+    hc, wc = -(-h // cell), -(-w // cell)
+    pad = np.zeros((hc * cell, wc * cell), np.float64)
+    has = np.zeros_like(pad)
+    pad[:h, :w] = np.where(depth > 0, 1.0 / np.maximum(depth, 1e-12), 0)
+    has[:h, :w] = depth > 0
+    blocks = lambda a: a.reshape(hc, cell, wc, cell).sum((1, 3))  # noqa: E731
+    n = blocks(has)
+    hole = n < cell * cell / 2
+    inv = np.where(hole, 0, blocks(pad) / np.maximum(n, 1))
+    if not hole.any() or hole.all():
+        return np.zeros_like(depth)
+    nlab, lab = cv2.connectedComponents(hole.astype(np.uint8), connectivity=4)
+    # each (hole cell, known neighbour) pair: the neighbour is on that hole's edge
+    lab_e, pos_e, val_e = [], [], []
+    for dy, dx in ((0, 1), (0, -1), (1, 0), (-1, 0)):
+        y, x = np.nonzero(hole)
+        vy, vx = y + dy, x + dx
+        ok = (vy >= 0) & (vy < hc) & (vx >= 0) & (vx < wc)
+        y, x, vy, vx = y[ok], x[ok], vy[ok], vx[ok]
+        edge = ~hole[vy, vx]
+        lab_e.append(lab[y[edge], x[edge]]), pos_e.append(np.c_[vx[edge], vy[edge]]), val_e.append(inv[vy[edge], vx[edge]])
+    lab_e, pos_e, val_e = np.concatenate(lab_e), np.concatenate(pos_e).astype(np.float64), np.concatenate(val_e)
+    cnt = np.bincount(lab_e, minlength=nlab)
+    mid = np.stack([np.bincount(lab_e, pos_e[:, k], nlab) for k in (0, 1)], 1) / np.maximum(cnt, 1)[:, None]
+    A = np.c_[pos_e - mid[lab_e], np.ones(len(pos_e))]
+    # per hole: the least-squares plane through its edge (normal equations summed by label); an
+    # edge along a line (a hole at the image's border) leaves the slope across it at zero
+    AtA = np.zeros((nlab, 3, 3))
+    Atb = np.zeros((nlab, 3))
+    np.add.at(AtA, lab_e, A[:, :, None] * A[:, None, :])
+    np.add.at(Atb, lab_e, A * val_e[:, None])
+    coef = np.linalg.solve(AtA + 1e-6 * np.diag([1.0, 1.0, 0.0]) + 1e-12 * np.eye(3), Atb[..., None])[..., 0]
+    rel = ((A * coef[lab_e]).sum(1) - val_e) / val_e
+    sq = np.bincount(lab_e, rel * rel, nlab)
+    planar = (cnt >= 3) & (np.sqrt(sq / np.maximum(cnt, 1)) <= tol)
+    planar[0] = False  # label 0: the known cells
+    yy, xx = np.mgrid[0:hc, 0:wc]
+    c, m = coef[lab], mid[lab]
+    fit = c[..., 0] * (xx - m[..., 0]) + c[..., 1] * (yy - m[..., 1]) + c[..., 2]
+    take = hole & planar[lab] & (fit > 0)
+    inv[take] = fit[take]
+    inv[hole & ~take] = np.nan  # bilinear interpolation carries NaN: no depth beside them
+    full = cv2.resize(inv.astype(np.float32), (wc * cell, hc * cell), interpolation=cv2.INTER_LINEAR)[:h, :w]
+    ok = (depth <= 0) & np.isfinite(full) & (full > 0)
+    return np.where(ok, 1.0 / np.where(ok, full, 1), 0).astype(np.float32)
+
+
+def surface_normals(view, depth):
+    """Normals of the surface a depth map describes (finite differences of its points), facing
+    the photo; zero where a neighbouring pixel has no depth."""
+    P = view.points(depth)
+    du, dv = np.gradient(P, axis=1), np.gradient(P, axis=0)
+    n = np.cross(du, dv)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True) + 1e-12
+    n *= np.sign(((view.centre - P) * n).sum(-1, keepdims=True) + 1e-12)
+    valid = depth > 0
+    for ax in (0, 1):
+        for s in (1, -1):
+            valid &= np.roll(depth > 0, s, axis=ax)
+    return np.where(valid[..., None], n, 0).astype(np.float32)
+
+
+def backdrop(view, depth, box):
+    """Depth for the pixels with none where the ray leaves the room's box: the photos' far
+    content (a room seen through a door, an office behind the object) laid on the box's faces,
+    as image-based renderers' far proxies do. Returns depth (0 where known) and the faces'
+    inward normals."""
+    rays = view.rays()[depth <= 0]
+    o = view.centre
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ts = np.where(rays > 0, (box[1] - o) / rays, np.where(rays < 0, (box[0] - o) / rays, np.inf))
+    axis = ts.argmin(1)
+    t = ts[np.arange(len(ts)), axis]
+    inside = ((o >= box[0]) & (o <= box[1])).all()
+    ok = np.isfinite(t) & (t > 0) & inside
+    nrm = np.zeros((len(rays), 3), np.float32)
+    nrm[np.arange(len(rays)), axis] = -np.sign(rays[np.arange(len(rays)), axis])
+    out = np.zeros(depth.shape, np.float32)
+    out[depth <= 0] = np.where(ok, t, 0)
+    full = np.zeros(depth.shape + (3,), np.float32)
+    full[depth <= 0] = np.where(ok[:, None], nrm, 0)
+    return out, full
+
+
+def fill_holes(views, nbrs, kept, found, box, stages, voxel):
+    """The points each of `stages` (a prefix of HOLES) gives the pixels with no kept depth, by
+    stage (Voxels). A filled point is dropped where a neighbour sees a surface behind it: stereo's
+    for the planes, stereo's and the planes' for the later stages."""
+    planes = [fill(v, d, found, box) for v, d in zip(views, kept)]
+    planes = [(free_space(views, i, nbrs, fd, kept), fn) for i, (fd, fn) in enumerate(planes)]
+    seen = [np.where(d > 0, d, fd) for d, (fd, _) in zip(kept, planes)]
+    # the backdrop's box holds the cameras too: photos taken from outside the points' bounds
+    # (a desk seen from across the room) still see the room's far side on it
+    cams = np.array([v.centre for v in views])
+    pad = BOX_MARGIN / (1 + 2 * BOX_MARGIN) * (box[1] - box[0])
+    far = (np.minimum(box[0], cams.min(0) - pad), np.maximum(box[1], cams.max(0) + pad))
+    vox = {k: Voxels(voxel) for k in stages}
+    for i, v in enumerate(views):
+        fd, fn = planes[i]
+        vox["planes"].add(v.points(fd)[fd > 0], fn[fd > 0])
+        now = seen[i]
+        if "complete" in stages:
+            cd = free_space(views, i, nbrs, complete(now), seen)
+            cn = surface_normals(v, np.where(cd > 0, cd, now))
+            towards = v.centre - v.points(cd)
+            towards /= np.linalg.norm(towards, axis=-1, keepdims=True) + 1e-12
+            cn = np.where((cn == 0).all(-1, keepdims=True), towards, cn)  # no normal at a hole's rim
+            vox["complete"].add(v.points(cd)[cd > 0], cn[cd > 0])
+            now = np.where(cd > 0, cd, now)
+        if "backdrop" in stages:
+            bd, bn = backdrop(v, now, far)
+            bd = free_space(views, i, nbrs, bd, seen)
+            vox["backdrop"].add(v.points(bd)[bd > 0], bn[bd > 0])
+    return vox
+
+
 @dataclass
 class Result:
     points: np.ndarray
     normals: np.ndarray
     voxel: float
     stereo_points: int
-    plane_points: int
+    filled_points: dict  # fused points from each hole-filling stage (HOLES), by name
     planes: int
     kept_share: float  # pixels with a consistent depth, over all photos
-    filled_share: float  # pixels given a plane's depth
+    filled_share: dict  # pixels given a depth by each stage, over all photos
     up: np.ndarray  # the room's up direction (`vertical`)
 
 
@@ -647,9 +781,12 @@ class _Serial:
         return map(fn, items)
 
 
-def run(views, sparse_points, cache: Path = None, log=lambda s: None):
+def run(views, sparse_points, cache: Path = None, log=lambda s: None, holes="backdrop"):
     """The whole dense step over `views` (a list of View) with the sparse points giving each
-    photo's depth range. Depth maps are cached under `cache` (one .npz a photo) when given."""
+    photo's depth range. Depth maps are cached under `cache` (one .npz a photo) when given.
+    `holes` (one of HOLES) names the last of the stages that fill what stereo keeps no depth for:
+    the room's planes, then the holes' interpolation (`complete`), then the room's box
+    (`backdrop`)."""
     cache = cache / sweep_key() if cache else None
     ranges = [depth_range(v, sparse_points) for v in views]
     if all(r is None for r in ranges):
@@ -667,17 +804,11 @@ def run(views, sparse_points, cache: Path = None, log=lambda s: None):
     found = fit_planes(pts, nrm, np.array([v.centre for v in views]), voxel, up)
     lo, hi = np.percentile(pts, BOX_PERCENTILE, axis=0), np.percentile(pts, 100 - BOX_PERCENTILE, axis=0)
     box = (lo - BOX_MARGIN * (hi - lo), hi + BOX_MARGIN * (hi - lo))
-    vox = Voxels(voxel)
-    filled = 0
-    for i, (v, d) in enumerate(zip(views, kept)):
-        fd, fn = fill(v, d, found, box)
-        fd = free_space(views, i, nbrs, fd, kept)
-        ok = fd > 0
-        filled += int(ok.sum())
-        vox.add(v.points(fd)[ok], fn[ok])
-    fpts, fnrm, _ = vox.result()
+    vox = fill_holes(views, nbrs, kept, found, box, HOLES[: HOLES.index(holes) + 1], voxel)
+    parts = {k: vb.result()[:2] for k, vb in vox.items()}
     total = sum(d.size for d in kept)
-    all_pts = np.concatenate([pts, fpts]) if len(fpts) else pts
-    all_nrm = np.concatenate([nrm, fnrm]) if len(fpts) else nrm
-    return Result(all_pts, all_nrm, voxel, len(pts), len(fpts), len(found),
-                  sum(int((d > 0).sum()) for d in kept) / total, filled / total, up)
+    share = {k: int(sum(c.sum() for c in vb.counts)) for k, vb in vox.items()}  # pixels, before voxels
+    all_pts = np.concatenate([pts] + [p for p, _ in parts.values()])
+    all_nrm = np.concatenate([nrm] + [n for _, n in parts.values()])
+    return Result(all_pts, all_nrm, voxel, len(pts), {k: len(p) for k, (p, _) in parts.items()}, len(found),
+                  sum(int((d > 0).sum()) for d in kept) / total, {k: n / total for k, n in share.items()}, up)
