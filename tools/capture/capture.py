@@ -4,10 +4,12 @@
 Runs on CPUs only: structure from motion with pycolmap (SIFT, exhaustive matching, incremental
 mapping), undistortion to pinhole cameras, a dense step (dense.py: plane-sweep stereo per photo,
 kept where neighbours agree, fused, with the room's large planes filled where stereo finds
-nothing), then a proxy surface by screened Poisson (PyMeshLab) over the dense points, trimmed to
-where points are. COLMAP's own dense stereo needs CUDA; this one runs on two cores.
+nothing, then holes on one plane, then the room's box behind the rest), then a proxy surface by
+screened Poisson (PyMeshLab) over the dense points, trimmed to where points are and decimated.
+COLMAP's own dense stereo needs CUDA; this one runs on two cores.
 
     python tools/capture/capture.py PHOTOS OUT [--size 512] [--scale M] [--no-dense]
+        [--holes planes|complete|backdrop] [--max-triangles N]
 
 PHOTOS holds JPEG or PNG files (or an images/ folder of them). OUT gets images/, sparse/0/
 (binary COLMAP, PINHOLE cameras) and mesh.ply, in metres with +Y up (the mean of the cameras' up
@@ -432,7 +434,7 @@ def dense_points(und: Path, cache: Path, prog: Progress, holes="backdrop"):
         res = dense.run(views, xyz, cache=cache, log=lambda s: prog.note(s), holes=holes)
     except dense.DenseError as e:
         raise CaptureError(f"dense step: {e}")
-    what = {"planes": f"{res.planes} planes", "complete": "the holes interpolated", "backdrop": "the room's box"}
+    what = {"planes": f"{res.planes} planes", "complete": "holes on one plane", "backdrop": "the room's box"}
     filled = "".join(f"{res.filled_points[k]} from {what[k]} ({100 * res.filled_share[k]:.0f} % of pixels), "
                      for k in res.filled_points)
     msg = (f"{res.stereo_points} points from stereo ({100 * res.kept_share:.0f} % of pixels), {filled}"
@@ -504,6 +506,8 @@ def write_ply(path: Path, v, f):
 
 
 def main(argv=None):
+    import dense
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("photos", type=Path)
     ap.add_argument("out", type=Path)
@@ -516,9 +520,9 @@ def main(argv=None):
                     help="the surface over the sparse points only (no dense step)")
     ap.add_argument("--max-triangles", type=int, default=MAX_TRIANGLES,
                     help=f"the dense surface's triangle budget (default {MAX_TRIANGLES}; decimated beyond it)")
-    ap.add_argument("--holes", choices=["planes", "complete", "backdrop"], default="backdrop",
+    ap.add_argument("--holes", choices=dense.HOLES, default="backdrop",
                     help="what fills the pixels stereo keeps no depth for: the room's planes; then also the "
-                         "holes' depth interpolated from around them; then also the room's box (default)")
+                         "holes whose edge lies on one plane; then also the room's box (default)")
     a = ap.parse_args(argv)
     try:
         run(a)
