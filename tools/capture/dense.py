@@ -665,18 +665,19 @@ def fill_holes(views, nbrs, kept, found, box, stages, voxel):
     """The points each of `stages` (a prefix of HOLES) gives the pixels with no kept depth, by
     stage (Voxels). A filled point is dropped where a neighbour sees a surface behind it: stereo's
     for the planes, stereo's and the planes' for the later stages."""
-    planes = [fill(v, d, found, box) for v, d in zip(views, kept)]
-    planes = [(free_space(views, i, nbrs, fd, kept), fn) for i, (fd, fn) in enumerate(planes)]
-    seen = [np.where(d > 0, d, fd) for d, (fd, _) in zip(kept, planes)]
+    vox = {k: Voxels(voxel) for k in stages}
+    seen = []  # stereo's and the planes' depth: one map a photo (no normals kept: 300 photos)
+    for i, (v, d) in enumerate(zip(views, kept)):
+        fd, fn = fill(v, d, found, box)
+        fd = free_space(views, i, nbrs, fd, kept)
+        vox["planes"].add(v.points(fd)[fd > 0], fn[fd > 0])
+        seen.append(np.where(d > 0, d, fd))
     # the backdrop's box holds the cameras too: photos taken from outside the points' bounds
     # (a desk seen from across the room) still see the room's far side on it
     cams = np.array([v.centre for v in views])
     pad = BOX_MARGIN / (1 + 2 * BOX_MARGIN) * (box[1] - box[0])
     far = (np.minimum(box[0], cams.min(0) - pad), np.maximum(box[1], cams.max(0) + pad))
-    vox = {k: Voxels(voxel) for k in stages}
     for i, v in enumerate(views):
-        fd, fn = planes[i]
-        vox["planes"].add(v.points(fd)[fd > 0], fn[fd > 0])
         now = seen[i]
         if "complete" in stages:
             cd = free_space(views, i, nbrs, complete(now), seen)
