@@ -1,6 +1,7 @@
 """The dense step of `capture.py`: a depth map per photo by plane-sweep stereo, kept where its
 neighbours agree, fused into oriented points, with the large planes that stereo cannot see
-(textureless walls, floors, ceilings, table tops) filled from planes fitted to those points.
+(textureless walls, floors, ceilings, table tops) filled from planes fitted to those points,
+then holes on one plane, then the room's box behind what is left.
 
 Runs on CPUs with OpenCV and NumPy (and SciPy's k-d tree). Why not the engine's compute shaders:
 the sweep is a few hundred image warps and box filters per photo, which OpenCV runs vectorised on
@@ -25,8 +26,8 @@ this step exists for has none.
    its largest connected patch of points (a table top); a photo's pixel with no kept depth whose
    ray meets such a plane first becomes a point of that plane, unless a neighbour sees a surface
    behind it.
-6. **Completion** (`complete`): the holes left, filled by interpolating each photo's inverse
-   depth from around them (harmonic: exact within a plane), with the same free-space check.
+6. **Completion** (`complete`): a hole left whose edge lies on one plane (inverse depth affine
+   in the pixel coordinates) takes it, with the same free-space check.
 7. **Backdrop** (`backdrop`): what is still without depth, on the room's box where the ray
    leaves it (the far content a capture does not resolve).
 
@@ -597,7 +598,9 @@ def complete(depth, cell=COMPLETE_CELL, tol=PLANAR_TOL):
         ok = (vy >= 0) & (vy < hc) & (vx >= 0) & (vx < wc)
         y, x, vy, vx = y[ok], x[ok], vy[ok], vx[ok]
         edge = ~hole[vy, vx]
-        lab_e.append(lab[y[edge], x[edge]]), pos_e.append(np.c_[vx[edge], vy[edge]]), val_e.append(inv[vy[edge], vx[edge]])
+        lab_e.append(lab[y[edge], x[edge]])
+        pos_e.append(np.c_[vx[edge], vy[edge]])
+        val_e.append(inv[vy[edge], vx[edge]])
     lab_e, pos_e, val_e = np.concatenate(lab_e), np.concatenate(pos_e).astype(np.float64), np.concatenate(val_e)
     cnt = np.bincount(lab_e, minlength=nlab)
     mid = np.stack([np.bincount(lab_e, pos_e[:, k], nlab) for k in (0, 1)], 1) / np.maximum(cnt, 1)[:, None]
@@ -786,7 +789,7 @@ def run(views, sparse_points, cache: Path = None, log=lambda s: None, holes="bac
     """The whole dense step over `views` (a list of View) with the sparse points giving each
     photo's depth range. Depth maps are cached under `cache` (one .npz a photo) when given.
     `holes` (one of HOLES) names the last of the stages that fill what stereo keeps no depth for:
-    the room's planes, then the holes' interpolation (`complete`), then the room's box
+    the room's planes, then the holes on one plane (`complete`), then the room's box
     (`backdrop`)."""
     cache = cache / sweep_key() if cache else None
     ranges = [depth_range(v, sparse_points) for v in views]
