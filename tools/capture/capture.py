@@ -524,6 +524,8 @@ def main(argv=None):
                     help="what fills the pixels stereo keeps no depth for: the room's planes; then also the "
                          "holes whose edge lies on one plane; then also the room's box (default)")
     a = ap.parse_args(argv)
+    if a.max_triangles < 1000:
+        ap.error(f"--max-triangles {a.max_triangles}: expected at least 1000 (a surface needs triangles)")
     try:
         run(a)
     except CaptureError as e:
