@@ -20,8 +20,9 @@ use relit_engine::net::Storage;
 use relit_engine::scene::synth::{self, SynthOptions};
 use relit_engine::scene::{Camera, Light, LightShape, Mesh};
 
-/// The floor's specular strength in the photos.
-const S_TRUE: f32 = 0.25;
+/// The floor's specular strength in the photos: a dielectric's, within GLOSSY_WIDE_S (a wider
+/// lobe stronger than that is out).
+const S_TRUE: f32 = 0.07;
 
 struct Room {
     mesh: Mesh,

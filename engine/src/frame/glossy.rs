@@ -20,7 +20,7 @@ use super::RefInputs;
 use crate::bake::GpuLight;
 use crate::constants::{
     GLOSSY_COS_MIN, GLOSSY_F0, GLOSSY_LOBE_1, GLOSSY_LOBE_2, GLOSSY_LOBE_3, GLOSSY_MIN_VIEWS,
-    GLOSSY_SHARE, GLOSSY_S_MAX, SIGHT_CACHE_SAMPLES,
+    GLOSSY_SHARE, GLOSSY_S_MAX, GLOSSY_WIDE_S, SIGHT_CACHE_SAMPLES,
 };
 use crate::gpu::shaders;
 use crate::scene::Mesh;
@@ -41,9 +41,17 @@ fn lobe_width(c: usize) -> f32 {
 /// The largest strength lobe c may take in the fit per surface (`glossy_fit/`):
 /// GLOSSY_S_MAX for the narrowest, less for wider ones in proportion to their roughness (a rough
 /// surface that reflects as much as a mirror is a rough metal, rare indoors; a near-mirror
-/// blurred by its proxy would otherwise take a wide lobe and glow around every lamp).
+/// blurred by its proxy would otherwise take a wide lobe and glow around every lamp), and at
+/// most GLOSSY_WIDE_S, a dielectric's F0, for the wider ones: a glossy plastic reflecting a large
+/// window (a lobe evaluated at the light's centre) otherwise takes the widest lobe and spreads
+/// the window into a sheen the surface does not have (sg800003, session 36).
 pub fn lobe_s_max(c: usize) -> f32 {
-    GLOSSY_S_MAX * GLOSSY_LOBE_1 / lobe_width(c)
+    let s = GLOSSY_S_MAX * GLOSSY_LOBE_1 / lobe_width(c);
+    if c > 0 {
+        s.min(GLOSSY_WIDE_S)
+    } else {
+        s
+    }
 }
 
 /// Centre, unit emitting normal and area of a light.
