@@ -6,7 +6,7 @@
 # the TV and the window's reflection on the floor, the table, the bed, the shelf; the lamp by the
 # TV switches on, the original light dims to 30%, the lamp moves mid-room and on towards the bed,
 # and the original light returns) to out/demo_room_fly.mp4 in relit's default mode (the one that
-# scores best on rooms never trained on: the shipped network, which corrects eq. 5's ratio image
+# scores best on rooms never trained on: the shipped network, which corrects glossy mode's image
 # where the lamp's light reaches and the photos disagree, and fills the holes no photo sees;
 # docs/evaluation.md), and with the ratio rule alone (its holes black) to
 # out/demo_room_fly_ratio.mp4 for comparison, and in glossy mode to out/demo_room_fly_glossy.mp4.
@@ -24,7 +24,7 @@ $R render $S --camera test003 --lighting extra0_on_dimmed --out out/demo_room_te
 $R fly $S --path $S/paths/walk.json --out out/demo_room_fly.mp4 --res 256x192 --fps 12
 # The same path with the ratio rule alone (no network: the holes stay black).
 $R fly $S --path $S/paths/walk.json --out out/demo_room_fly_ratio.mp4 --res 256x192 --fps 12 --mode ratio
-# And in glossy mode (§3's L = a·E + S without the network): the lamp's floor highlight moves
-# with it, which the network's frames do not show yet.
+# And in glossy mode (§3's L = a·E + S), the network's base, without the network: the lamp's
+# floor highlight moves with it in both.
 $R fly $S --path $S/paths/walk.json --out out/demo_room_fly_glossy.mp4 --res 256x192 --fps 12 --mode glossy
 echo "main job done: out/demo_room_fly.mp4, out/demo_room_fly_ratio.mp4, out/demo_room_fly_glossy.mp4, out/demo_room_test003.png"

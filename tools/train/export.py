@@ -16,18 +16,18 @@ does under the adversarial term, can be better at their mean than at either); th
 into the "relit.trained" metadata.
 
 `--shrink T` sets the exported network's soft threshold on its corrections (model.py's
-`shrink`, base "ratio" only): a correction smaller than T in tonemapped space leaves the ratio
+`shrink`, base "ratio" or "glossy"): a correction smaller than T in tonemapped space leaves the ratio
 image as it is. Choose T on the validation rooms (evaluate.py), never on held-out ones.
 
-`--gate G` sets the exported network's gate (model.py's `gate`, base "ratio" only): on a
+`--gate G` sets the exported network's gate (model.py's `gate`, base "ratio" or "glossy"): on a
 covered pixel each correction is scaled by min(1, f / G), f the new light's share of the pixel's
 light, so that where no lamp reaches the image is ratio's exactly.
 
 `--gain` makes the exported network's diffuse correction a gain on the ratio image that keeps
-its colour (model.py's `gain`, base "ratio" only).
+its colour (model.py's `gain`, base "ratio" or "glossy").
 
 `--agree A` scales each correction on a covered pixel also by min(1, D / A), D the input views'
-disagreement (model.py's `agree`, base "ratio" only): where the reprojected views agree, the
+disagreement (model.py's `agree`, base "ratio" or "glossy"): where the reprojected views agree, the
 image is ratio's. Choose A on the validation rooms.
 
 `--base ratio|glossy` moves a correcting network's corrections onto another base: glossy puts
@@ -130,13 +130,13 @@ def main():
     ap.add_argument("--average", nargs="+", default=[], metavar="W",
                     help="weights files of the same network to average with the checkpoint's")
     ap.add_argument("--shrink", type=float, metavar="T",
-                    help="soft threshold on the corrections (base ratio): below T, the ratio image")
+                    help="soft threshold on the corrections (base ratio): below T, the base image")
     ap.add_argument("--gate", type=float, metavar="G",
-                    help="scale corrections by min(1, new light's share / G) (base ratio)")
+                    help="scale corrections by min(1, new light's share / G) (base ratio or glossy)")
     ap.add_argument("--gain", action="store_const", const=True,
                     help="the diffuse correction as a colour-keeping gain on the ratio image")
     ap.add_argument("--agree", type=float, metavar="A",
-                    help="scale corrections by min(1, input views' disagreement / A) (base ratio)")
+                    help="scale corrections by min(1, input views' disagreement / A) (base ratio or glossy)")
     ap.add_argument("--base", choices=M.CORRECTING,
                     help="the image the corrections land on (a network trained on another "
                          "base keeps its weights; its metadata records the base it learned on)")

@@ -20,10 +20,10 @@ Structure (W = width):
                    glossy_image; samples.py mixes it from the parts). Every key below applies
                    to both bases alike.
                    base "none": the network's output is the image (the paper's formulation).
-  shrink         : τ ≥ 0 (base "ratio" only): on covered pixels (I_1 not black) each correction
+  shrink         : τ ≥ 0 (base "ratio" or "glossy"): on covered pixels (I_1 not black) each correction
                    channel c becomes sign(c)·max(|c| − τ, 0), so corrections smaller than τ
                    (tonemapped) leave the ratio image as it is; 0 (default) keeps them all.
-  gate           : G ≥ 0 (base "ratio" only): on covered pixels each correction is scaled by
+  gate           : G ≥ 0 (base "ratio" or "glossy"): on covered pixels each correction is scaled by
                    min(1, f / G), f the new light's share of the pixel's light, max over RGB of
                    E_add / (E_src − E_rem + E_add) (the denominator floored as ratio_base floors
                    E_src). Light is linear and α_dim scales every original light alike, so where
@@ -31,7 +31,7 @@ Structure (W = width):
                    ratio's image, (1 − α_dim) × I_1, is exactly as right as the photos'
                    composite: the image is ratio's there, whatever the weights, and the network
                    corrects only what the new light brings. 0 (default): no gate.
-  gain           : false or true (base "ratio" only): true turns the diffuse correction, on covered
+  gain           : false or true (base "ratio" or "glossy"): true turns the diffuse correction, on covered
                    pixels, into a gain on the ratio image that keeps its colour: with B the
                    ratio base and D = B + O_d, the log of the RGB mean's ratio,
                    g = log(mean untm(D) + GAIN_EPS) − log(mean untm(B) + GAIN_EPS), scaled by
@@ -39,7 +39,7 @@ Structure (W = width):
                    network can then brighten or darken what ratio shows, not tint it (a
                    trained network's corrections carried one warm cast into every room,
                    whatever colour the lamp; session 19). false (default): additive corrections.
-  agree          : A ≥ 0 (base "ratio" only): on covered pixels each correction is also scaled by
+  agree          : A ≥ 0 (base "ratio" or "glossy"): on covered pixels each correction is also scaled by
                    min(1, D / A), D the input views' disagreement (`disagreement`): where the
                    reprojected views I_2..I_8 match I_1 the proxy puts every view's pixel on the
                    same surface point and the surface looks the same from each, which is where
