@@ -504,6 +504,18 @@ mod tests {
         }
     }
 
+    /// Sums over all three lobes of 100 pixels seen 10 times each (pseudo-albedo 0.3).
+    fn lobes(xx: [f32; LOBES], xi: [f32; LOBES], ii: f32) -> FitSums {
+        FitSums {
+            xx,
+            xi,
+            ii,
+            samples: 1000.0,
+            pixels: 100.0,
+            albedo: Vec3::splat(30.0),
+        }
+    }
+
     fn empty() -> Mesh {
         Mesh {
             positions: Vec::new(),
@@ -665,14 +677,7 @@ mod tests {
     fn a_near_mirror_takes_the_narrowest_lobe() {
         // Slopes 0.1, 0.06, 0.09; t 42, 147, 27: lobe 2 explains the views best, but lobe 3's
         // slope is over its cap (GLOSSY_WIDE_S).
-        let mut f = FitSums {
-            xx: [100.0, 400.0, 100.0],
-            xi: [10.0, 24.0, 9.0],
-            ii: 1.5,
-            samples: 1000.0,
-            pixels: 100.0,
-            albedo: Vec3::splat(30.0),
-        };
+        let mut f = lobes([100.0, 400.0, 100.0], [10.0, 24.0, 9.0], 1.5);
         let w = f.strengths();
         assert_eq!((w[1], w[2]), (0.0, 0.0), "{w:?}");
         assert!((w[0] - 0.1).abs() < 1e-6, "{w:?}");
@@ -688,14 +693,7 @@ mod tests {
     /// dielectric reflects, is out and a narrower lobe takes the surface (sg800003's box top).
     #[test]
     fn a_wide_lobe_stronger_than_a_dielectric_is_out() {
-        let mut f = FitSums {
-            xx: [0.0, 400.0, 100.0],
-            xi: [0.0, 12.0, 10.0],
-            ii: 1.0,
-            samples: 1000.0,
-            pixels: 100.0,
-            albedo: Vec3::splat(60.0),
-        };
+        let mut f = lobes([0.0, 400.0, 100.0], [0.0, 12.0, 10.0], 1.0);
         let w = f.strengths();
         assert!(w[2] == 0.0 && (w[1] - 0.03).abs() < 1e-6, "{w:?}");
         f.xi[2] = 7.0; // slope 0.07: a dielectric's, and it explains the views best
